@@ -1,0 +1,34 @@
+# jaxmotion: make setup | test | train EXP=<name> ARGS="k=v ..." | eval RUN=<run-folder> | bench
+PY ?= .venv/bin/python
+EXP ?= smoke
+ARGS ?=
+RUN ?=
+BENCH_ARGS ?=
+STAMP := .venv/.installed
+
+.PHONY: setup test train eval bench clean
+
+setup: $(STAMP)
+
+# Reinstall only when pyproject.toml is newer than the last install.
+$(STAMP): pyproject.toml
+	command -v $(PY) >/dev/null || python3 -m venv .venv
+	$(PY) -m pip install -e '.[test]'
+	touch $(STAMP)
+
+test: $(STAMP)
+	JAX_DISABLE_JIT=1 $(PY) -m pytest -q
+
+train: $(STAMP)
+	$(PY) -m jaxmotion.train $(EXP) $(ARGS)
+
+eval: $(STAMP)
+	@test -n "$(RUN)" || { echo "usage: make eval RUN=runs/<name>/<timestamp>"; exit 2; }
+	$(PY) -m jaxmotion.eval $(RUN)
+
+bench: $(STAMP)
+	$(PY) -m jaxmotion.bench $(BENCH_ARGS)
+
+clean:
+	rm -rf build dist *.egg-info .pytest_cache
+	find . -name __pycache__ -type d -not -path './.venv/*' -prune -exec rm -rf {} +
