@@ -1,0 +1,10 @@
+"""Upper body: chest-open exercise; lower body: squat (paper Table 1 row 3: 0.10 m / 0.09 m).
+
+The authors' config uses ω = 0.5/0.5 and caps training at 10k iterations (41M samples); the paper
+reports its errors after about 20M samples. 5000 iterations here = 20.5M samples.
+"""
+from _common import GYM, composite
+
+
+def config():
+    return composite((GYM + "chest_open+walk_in_place.json",), (GYM + "squat.json",))

@@ -1,0 +1,1 @@
+"""Pure learning pieces: GAE, PopArt, PPO losses, discriminator loss/reward, normaliser."""

@@ -1,0 +1,134 @@
+"""PopArt return normalisation, one normaliser per critic head (van Hasselt et al. 2016).
+
+Each critic head ``k`` predicts its value in a normalised space, ``v_k = (V_k - mu_k) / sigma_k``.
+The statistics track the return targets of head ``k``; every time they move, the critic's last
+linear layer is rescaled (``preserve_outputs``) so that the unnormalised output
+``sigma_k * v_k + mu_k`` is exactly what it was before ("Preserving Outputs Precisely"), and
+the value loss is a plain MSE in the normalised space ("Adaptively Rescaling Targets").
+
+Statistics: exponential moving averages of the first and second moment of the targets, with
+step size ``beta`` (0.1 in the authors' code, one update per iteration from the batch of
+returns), and Adam-style bias correction. The state stores the *bias-corrected* moments
+directly, together with the correction weight ``debias = 1 - prod(1 - beta_i)``, so that
+``normalize``, ``denormalize`` and ``preserve_outputs`` all use the same numbers and outputs are
+preserved exactly from the very first update. (The authors' ``DiagonalPopArt`` corrects in the
+forward pass but rescales with the uncorrected moments, so it preserves outputs only
+approximately for the first ~50 updates; see shared/notes/compositemotion.md §0.7.)
+
+Update rule, with batch moments ``m1 = mean(x)``, ``m2 = mean(x**2)`` over the ``N`` targets::
+
+    debias' = (1 - beta) * debias + beta
+    mean'   = ((1 - beta) * debias * mean + beta * m1) / debias'
+    second' = ((1 - beta) * debias * second + beta * m2) / debias'
+
+so the first update (``debias = 0``) sets the moments to the batch moments.
+``sigma = max(sqrt(second - mean**2), 1e-4)``.
+
+Usage per iteration::
+
+    old = state
+    state = popart_update(state, returns.reshape(-1, K))
+    w, b = preserve_outputs(old, state, w, b)      # critic value_head kernel [H, K], bias [K]
+    targets = normalize(state, returns)            # for the value loss
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+STD_MIN = 1e-4
+
+
+@struct.dataclass
+class PopArtState:
+    """Bias-corrected running moments of the return targets of each critic head.
+
+    Attributes:
+      mean: ``[K]`` bias-corrected EMA of the targets.
+      second_moment: ``[K]`` bias-corrected EMA of the squared targets.
+      debias: ``[]`` accumulated EMA weight ``1 - prod_i (1 - beta_i)``; 0 before any update.
+      count: ``[]`` int32 number of updates.
+    """
+
+    mean: jax.Array
+    second_moment: jax.Array
+    debias: jax.Array
+    count: jax.Array
+
+
+def popart_init(num_heads: int) -> PopArtState:
+    """Identity normaliser (mean 0, std 1) for ``num_heads`` critic heads."""
+    return PopArtState(
+        mean=jnp.zeros((num_heads,), jnp.float32),
+        second_moment=jnp.ones((num_heads,), jnp.float32),
+        debias=jnp.zeros((), jnp.float32),
+        count=jnp.zeros((), jnp.int32),
+    )
+
+
+def popart_update(state: PopArtState, targets: jax.Array, beta: float = 0.1) -> PopArtState:
+    """Moves the statistics towards the moments of a batch of return targets.
+
+    Args:
+      state: current statistics.
+      targets: ``[..., K]`` unnormalised return targets (e.g. ``[T, B, K]`` or ``[N, K]``); all
+        leading axes are pooled.
+      beta: EMA step size in (0, 1].
+
+    Returns:
+      The new state. The critic's last layer must then be rescaled with ``preserve_outputs``.
+    """
+    targets = jax.lax.stop_gradient(targets).astype(jnp.float32)
+    targets = targets.reshape(-1, targets.shape[-1])
+    m1 = jnp.mean(targets, axis=0)
+    m2 = jnp.mean(jnp.square(targets), axis=0)
+    old_weight = (1.0 - beta) * state.debias
+    debias = old_weight + beta
+    return PopArtState(
+        mean=(old_weight * state.mean + beta * m1) / debias,
+        second_moment=(old_weight * state.second_moment + beta * m2) / debias,
+        debias=debias,
+        count=state.count + 1,
+    )
+
+
+def std(state: PopArtState) -> jax.Array:
+    """``[K]`` standard deviation of the targets, at least ``STD_MIN``."""
+    var = jnp.maximum(state.second_moment - jnp.square(state.mean), 0.0)
+    return jnp.maximum(jnp.sqrt(var), STD_MIN)
+
+
+def normalize(state: PopArtState, x: jax.Array) -> jax.Array:
+    """``[..., K]`` unnormalised values/returns -> normalised space ``(x - mu) / sigma``."""
+    return (x - state.mean) / std(state)
+
+
+def denormalize(state: PopArtState, x: jax.Array) -> jax.Array:
+    """``[..., K]`` normalised critic outputs -> unnormalised values ``sigma * x + mu``."""
+    return x * std(state) + state.mean
+
+
+def preserve_outputs(
+    old_state: PopArtState, new_state: PopArtState, w: jax.Array, b: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """Rescales the critic's last linear layer so unnormalised outputs are unchanged.
+
+    With ``v = h @ w + b`` the normalised output of the last layer,
+    ``sigma_new * (h @ w' + b') + mu_new == sigma_old * (h @ w + b) + mu_old`` for every ``h``.
+
+    Args:
+      old_state: statistics before ``popart_update``.
+      new_state: statistics after it.
+      w: ``[H, K]`` kernel of the value head (flax ``Dense`` layout).
+      b: ``[K]`` bias of the value head.
+
+    Returns:
+      ``(w', b')`` with ``w' = w * sigma_old / sigma_new`` and
+      ``b' = (sigma_old * b + mu_old - mu_new) / sigma_new``.
+    """
+    sigma_old, sigma_new = std(old_state), std(new_state)
+    w_new = w * (sigma_old / sigma_new)
+    b_new = (sigma_old * b + old_state.mean - new_state.mean) / sigma_new
+    return w_new, b_new

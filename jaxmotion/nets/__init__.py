@@ -1,0 +1,1 @@
+"""Flax networks as (init, apply) pairs: Gaussian policy, multi-head critic, discriminators."""

@@ -1,0 +1,203 @@
+"""Policy, multi-head critic and discriminator-ensemble networks (Xu et al. 2023, Fig. 3).
+
+Flax ``linen`` modules, each wrapped in an ``(init, apply)`` pair (``Network``) as in brax
+``training/networks.py``. All take a flat observation ``[..., D]`` that the caller has already
+normalised with ``algos.normalizer`` (the policy/critic state clipped to ±5, the discriminator
+observations unclipped, each discriminator with its own statistics); normalisation is kept out of
+``apply`` so the same statistics can be shared and updated in one place in the train state. The
+authors' GRU encoders over frame windows are not modelled here; observations are flat.
+
+Parameter layout (``params = network.init(rng)``, a ``{"params": ...}`` dict):
+
+* ``GaussianPolicy``: ``torso/hidden_{i}``, ``mean``, and ``log_std`` (a ``Dense`` head when
+  ``state_dependent_std``, else a ``[A]`` parameter).
+* ``MultiHeadCritic``: ``torso/hidden_{i}`` and ``value_head`` with kernel ``[H, K]`` at
+  ``params["params"]["value_head"]["kernel"]`` and bias ``[K]`` at
+  ``params["params"]["value_head"]["bias"]``, the layer PopArt rescales (``value_head`` /
+  ``replace_value_head``).
+* ``DiscriminatorEnsemble``: ``torso/hidden_{i}`` and ``heads`` (kernel ``[H, N_heads]``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+
+Params = Any
+Initializer = Callable[..., jax.Array]
+
+ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
+    "relu": nn.relu,
+    "relu6": nn.relu6,
+    "tanh": nn.tanh,
+    "elu": nn.elu,
+}
+
+VALUE_HEAD = "value_head"
+
+# PyTorch's nn.Linear default (kaiming_uniform with a=sqrt(5)): U(+-1/sqrt(fan_in)), the init of
+# the authors' policy and critic layers.
+torch_default_init = nn.initializers.variance_scaling(1.0 / 3.0, "fan_in", "uniform")
+
+
+def symmetric_uniform(scale: float) -> Initializer:
+    """Initializer drawing from ``U(-scale, scale)``."""
+
+    def init(key: jax.Array, shape: Sequence[int], dtype: Any = jnp.float32) -> jax.Array:
+        return jax.random.uniform(key, shape, dtype, -scale, scale)
+
+    return init
+
+
+def get_activation(name: str) -> Callable[[jax.Array], jax.Array]:
+    """Looks up an activation in ``ACTIVATIONS`` with a clear error."""
+    if name not in ACTIVATIONS:
+        raise ValueError(f"unknown activation {name!r}; choose one of {sorted(ACTIVATIONS)}")
+    return ACTIVATIONS[name]
+
+
+class MLP(nn.Module):
+    """Stack of ``Dense`` + activation layers; ``[..., D] -> [..., hidden_sizes[-1]]``."""
+
+    hidden_sizes: Sequence[int]
+    activation: str = "relu"
+    kernel_init: Initializer = torch_default_init
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        act = get_activation(self.activation)
+        for i, size in enumerate(self.hidden_sizes):
+            x = act(nn.Dense(size, kernel_init=self.kernel_init, name=f"hidden_{i}")(x))
+        return x
+
+
+class GaussianPolicy(nn.Module):
+    """Diagonal Gaussian policy: ``obs [..., D] -> (mean [..., A], log_std [..., A])``.
+
+    Attributes:
+      action_size: ``A``.
+      hidden_sizes: widths of the hidden layers.
+      activation: a key of ``ACTIVATIONS``.
+      state_dependent_std: True (the authors' code): ``log_std`` is a linear head on the last
+        hidden layer with weights ``U(+-1e-4)`` and bias ``init_log_std``. False: a learned
+        state-independent ``[A]`` parameter initialised to ``init_log_std``.
+      init_log_std: initial ``log_std`` (-3 gives sigma ~ 0.05).
+    """
+
+    action_size: int
+    hidden_sizes: Sequence[int] = (1024, 512)
+    activation: str = "relu6"
+    state_dependent_std: bool = True
+    init_log_std: float = -3.0
+
+    @nn.compact
+    def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
+        h = MLP(self.hidden_sizes, self.activation, name="torso")(obs)
+        mean = nn.Dense(self.action_size, kernel_init=torch_default_init, name="mean")(h)
+        if self.state_dependent_std:
+            log_std = nn.Dense(
+                self.action_size,
+                kernel_init=symmetric_uniform(1e-4),
+                bias_init=nn.initializers.constant(self.init_log_std),
+                name="log_std",
+            )(h)
+        else:
+            log_std = self.param(
+                "log_std", nn.initializers.constant(self.init_log_std), (self.action_size,)
+            )
+            log_std = jnp.broadcast_to(log_std, mean.shape)
+        return mean, log_std
+
+
+class MultiHeadCritic(nn.Module):
+    """``K`` value heads on a shared torso: ``obs [..., D] -> values [..., K]`` (normalised space).
+
+    The last layer is named ``VALUE_HEAD`` (kernel ``[H, K]``, bias ``[K]``) so PopArt can
+    rescale it; its weights start at ``U(+-1e-4)`` and its bias at 0.
+    """
+
+    num_heads: int
+    hidden_sizes: Sequence[int] = (1024, 512)
+    activation: str = "relu6"
+
+    @nn.compact
+    def __call__(self, obs: jax.Array) -> jax.Array:
+        h = MLP(self.hidden_sizes, self.activation, name="torso")(obs)
+        return nn.Dense(
+            self.num_heads,
+            kernel_init=symmetric_uniform(1e-4),
+            bias_init=nn.initializers.zeros,
+            name=VALUE_HEAD,
+        )(h)
+
+
+class DiscriminatorEnsemble(nn.Module):
+    """Multi-head discriminator: ``obs [..., D] -> logits [..., num_heads]``.
+
+    Every layer has orthogonal weights and zero biases. Samples are processed independently
+    (no batch statistics), which ``algos.disc`` relies on for per-sample input gradients.
+    """
+
+    num_heads: int = 32
+    hidden_sizes: Sequence[int] = (256, 128)
+    activation: str = "relu"
+
+    @nn.compact
+    def __call__(self, obs: jax.Array) -> jax.Array:
+        orthogonal = nn.initializers.orthogonal()
+        h = MLP(self.hidden_sizes, self.activation, kernel_init=orthogonal, name="torso")(obs)
+        return nn.Dense(self.num_heads, kernel_init=orthogonal, name="heads")(h)
+
+
+@dataclasses.dataclass(frozen=True)
+class Network:
+    """A network as a pair of pure functions.
+
+    Attributes:
+      init: ``rng -> params``.
+      apply: ``(params, obs [..., D]) -> outputs``.
+    """
+
+    init: Callable[[jax.Array], Params]
+    apply: Callable[[Params, jax.Array], Any]
+
+
+def make_network(module: nn.Module, obs_size: int) -> Network:
+    """Wraps a module taking ``[..., obs_size]`` inputs into an ``(init, apply)`` pair."""
+    dummy = jnp.zeros((1, obs_size), jnp.float32)
+    return Network(
+        init=lambda rng: module.init(rng, dummy),
+        apply=lambda params, obs: module.apply(params, obs),
+    )
+
+
+def make_policy_network(obs_size: int, action_size: int, **kwargs: Any) -> Network:
+    """``GaussianPolicy(action_size, **kwargs)``; apply returns ``(mean, log_std)``."""
+    return make_network(GaussianPolicy(action_size=action_size, **kwargs), obs_size)
+
+
+def make_critic_network(obs_size: int, num_heads: int, **kwargs: Any) -> Network:
+    """``MultiHeadCritic(num_heads, **kwargs)``; apply returns ``[..., K]`` normalised values."""
+    return make_network(MultiHeadCritic(num_heads=num_heads, **kwargs), obs_size)
+
+
+def make_discriminator_network(obs_size: int, num_heads: int = 32, **kwargs: Any) -> Network:
+    """``DiscriminatorEnsemble(num_heads, **kwargs)``; apply returns ``[..., num_heads]``."""
+    return make_network(DiscriminatorEnsemble(num_heads=num_heads, **kwargs), obs_size)
+
+
+def value_head(params: Params) -> tuple[jax.Array, jax.Array]:
+    """``(kernel [H, K], bias [K])`` of a ``MultiHeadCritic``'s last layer."""
+    layer = params["params"][VALUE_HEAD]
+    return layer["kernel"], layer["bias"]
+
+
+def replace_value_head(params: Params, kernel: jax.Array, bias: jax.Array) -> Params:
+    """Copy of critic ``params`` with the value head replaced (e.g. after PopArt rescaling)."""
+    inner = dict(params["params"])
+    inner[VALUE_HEAD] = {**inner[VALUE_HEAD], "kernel": kernel, "bias": bias}
+    return {**params, "params": inner}

@@ -1,0 +1,105 @@
+"""Tests of jaxmotion.nets.networks: shapes, heads, initialisation, PopArt param path."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxmotion.algos import popart
+from jaxmotion.nets import networks
+
+D, A, K = 6, 4, 3
+SMALL = (16, 8)
+
+
+def _obs(n=5, seed=1):
+    return jax.random.normal(jax.random.PRNGKey(seed), (n, D))
+
+
+@pytest.mark.parametrize("state_dependent_std", [True, False])
+def test_policy_shapes_and_initial_std(state_dependent_std):
+    net = networks.make_policy_network(
+        D, A, hidden_sizes=SMALL, state_dependent_std=state_dependent_std, init_log_std=-3.0
+    )
+    params = net.init(jax.random.PRNGKey(0))
+    mean, log_std = net.apply(params, _obs())
+    assert mean.shape == (5, A) and log_std.shape == (5, A)
+    assert np.isfinite(mean).all() and np.isfinite(log_std).all()
+    np.testing.assert_allclose(log_std, -3.0, atol=1e-2)
+    # Unbatched input works too.
+    mean1, log_std1 = net.apply(params, _obs()[0])
+    assert mean1.shape == (A,) and log_std1.shape == (A,)
+    if state_dependent_std:
+        kernel = params["params"]["log_std"]["kernel"]
+        assert kernel.shape == (SMALL[-1], A) and np.abs(kernel).max() <= 1e-4
+        np.testing.assert_allclose(params["params"]["log_std"]["bias"], -3.0)
+    else:
+        np.testing.assert_allclose(params["params"]["log_std"], -3.0)
+
+
+@pytest.mark.parametrize("activation", sorted(networks.ACTIVATIONS))
+def test_activations(activation):
+    net = networks.make_critic_network(D, K, hidden_sizes=SMALL, activation=activation)
+    values = net.apply(net.init(jax.random.PRNGKey(0)), _obs())
+    assert values.shape == (5, K) and np.isfinite(values).all()
+
+
+def test_unknown_activation_raises():
+    net = networks.make_critic_network(D, K, hidden_sizes=SMALL, activation="swishy")
+    with pytest.raises(ValueError, match="swishy"):
+        net.init(jax.random.PRNGKey(0))
+
+
+def test_default_sizes():
+    # eval_shape: shapes only, no (slow, un-jitted) initialisation of the full-size layers.
+    key = jax.random.PRNGKey(0)
+    pp = jax.eval_shape(networks.make_policy_network(D, A).init, key)
+    cp = jax.eval_shape(networks.make_critic_network(D, K).init, key)
+    assert pp["params"]["torso"]["hidden_0"]["kernel"].shape == (D, 1024)
+    assert pp["params"]["torso"]["hidden_1"]["kernel"].shape == (1024, 512)
+    assert networks.value_head(cp)[0].shape == (512, K)
+
+
+def test_critic_heads_and_popart_path():
+    net = networks.make_critic_network(D, K, hidden_sizes=SMALL)
+    params = net.init(jax.random.PRNGKey(0))
+    kernel = params["params"]["value_head"]["kernel"]
+    bias = params["params"]["value_head"]["bias"]
+    assert kernel.shape == (SMALL[-1], K) and bias.shape == (K,)
+    assert np.abs(kernel).max() <= 1e-4 and np.all(bias == 0)
+    k, b = networks.value_head(params)
+    assert k is kernel and b is bias
+    values = net.apply(params, _obs())
+    assert values.shape == (5, K) and np.isfinite(values).all()
+
+
+def test_popart_rescale_of_critic_preserves_outputs():
+    net = networks.make_critic_network(D, K, hidden_sizes=SMALL)
+    params = net.init(jax.random.PRNGKey(0))
+    # Give the head non-trivial weights so the check is meaningful.
+    k, b = networks.value_head(params)
+    params = networks.replace_value_head(params, k * 1e3, b + 0.5)
+    obs = _obs(32)
+    old = popart.popart_update(popart.popart_init(K), jnp.arange(3.0) + jnp.ones((4, K)))
+    new = popart.popart_update(old, jax.random.normal(jax.random.PRNGKey(2), (64, K)) * 7 + 3)
+    before = popart.denormalize(old, net.apply(params, obs))
+    w, b = popart.preserve_outputs(old, new, *networks.value_head(params))
+    params2 = networks.replace_value_head(params, w, b)
+    after = popart.denormalize(new, net.apply(params2, obs))
+    np.testing.assert_allclose(after, before, rtol=1e-5, atol=1e-5)
+    # The torso is untouched and the original params are not modified.
+    assert params2["params"]["torso"] is params["params"]["torso"]
+    assert networks.value_head(params)[0] is not networks.value_head(params2)[0]
+
+
+def test_discriminator_heads_and_orthogonal_init():
+    net = networks.make_discriminator_network(D, num_heads=32, hidden_sizes=(16, 8))
+    params = net.init(jax.random.PRNGKey(0))
+    logits = net.apply(params, _obs())
+    assert logits.shape == (5, 32) and np.isfinite(logits).all()
+    w = params["params"]["torso"]["hidden_0"]["kernel"]  # [D, 16]: orthonormal rows
+    np.testing.assert_allclose(w @ w.T, np.eye(D), atol=1e-5)
+    heads = params["params"]["heads"]["kernel"]  # [8, 32]
+    np.testing.assert_allclose(heads @ heads.T, np.eye(8), atol=1e-5)
+    default = jax.eval_shape(networks.make_discriminator_network(D).init, jax.random.PRNGKey(0))
+    assert default["params"]["heads"]["kernel"].shape == (128, 32)
