@@ -1,0 +1,111 @@
+"""The character and its PD servo: MJCF facts, the servo law, standing, MJX vs MuJoCo C."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+from mujoco import mjx
+
+from conftest import jit_enabled
+from jaxmotion.physics import sim
+from jaxmotion.physics.character import build_mjcf, character
+
+STAND_Z = 0.89  # root height with feet on the floor in the zero pose
+
+
+def _standing(m: mujoco.MjModel) -> mujoco.MjData:
+    d = mujoco.MjData(m)
+    d.qpos[:] = 0
+    d.qpos[2], d.qpos[3] = STAND_Z, 1.0
+    return d
+
+
+@pytest.mark.parametrize("sword_shield, nb, ndof", [(False, 15, 28), (True, 17, 31)])
+def test_character_matches_reference_model(sword_shield, nb, ndof):
+    ch = character(sword_shield)
+    m = ch.mj_model()
+    assert ch.num_bodies == nb and ch.num_dof == ndof
+    assert m.nq == 7 + ndof and m.nv == 6 + ndof and m.nu == ndof
+    if not sword_shield:
+        # Same total mass as shared/models/compositemotion/humanoid.xml (48.9 kg).
+        assert abs(m.body_mass.sum() - 48.89) < 0.01
+        # Floor contacts only: one candidate pair per body geom, none between body parts.
+        d = _standing(m)
+        d.qpos[2] = 0.0  # sink everything into the floor
+        mujoco.mj_forward(m, d)
+        assert all(0 in (d.contact[i].geom1, d.contact[i].geom2) for i in range(d.ncon))
+    else:
+        assert ch.body_names[6] == "sword" and ch.body_names[9] == "shield"
+        assert "right_hand_x" in ch.joint_names
+
+
+def test_servo_is_the_clipped_pd_law():
+    """The actuators apply clip(kp*(target-q) - kd*qdot, ±max_torque), per DoF."""
+    ch = character()
+    m = ch.mj_model()
+    d = _standing(m)
+    rng = np.random.default_rng(0)
+    d.qpos[7:] = rng.uniform(-0.3, 0.3, ch.num_dof)
+    d.qvel[6:] = rng.uniform(-3, 3, ch.num_dof)
+    d.ctrl[:] = rng.uniform(-1.0, 1.0, ch.num_dof)
+    mujoco.mj_forward(m, d)
+    expected = sim.pd_torque(ch, d.qpos[7:], d.qvel[6:], d.ctrl)
+    np.testing.assert_allclose(d.actuator_force, expected, rtol=1e-6, atol=1e-6)
+    assert np.any(np.abs(expected) == ch.max_torque)  # some torques do hit the limit
+
+
+@pytest.mark.parametrize("sword_shield", [False, True])
+def test_servo_holds_standing_pose_mujoco_c(sword_shield):
+    cfg = sim.PhysicsConfig(sword_shield=sword_shield)
+    m = sim.mj_model(cfg)
+    d = _standing(m)
+    for _ in range(int(2 * cfg.sim_hz)):
+        mujoco.mj_step(m, d)
+    assert d.qpos[2] > 0.8
+    # Without gains the same character collapses.
+    m.actuator_gainprm[:, 0] = 0
+    m.actuator_biasprm[:, 1:3] = 0
+    d = _standing(m)
+    for _ in range(int(2 * cfg.sim_hz)):
+        mujoco.mj_step(m, d)
+    assert d.qpos[2] < 0.4
+
+
+def test_mjx_control_step_matches_mujoco_c():
+    """One control step of the MJX servo (4 substeps in a scan) equals 4 MuJoCo C steps.
+
+    In the air, so that the two contact solvers (which legitimately differ) do not enter, and
+    with targets near the pose so no torque saturates: MuJoCo C drops a clamped actuator's
+    velocity derivative from the implicit step, MJX 3.17 keeps it, so they differ there.
+    """
+    cfg = sim.PhysicsConfig()
+    m = sim.mj_model(cfg)
+    d = _standing(m)
+    d.qpos[2] = 2.0
+    rng = np.random.default_rng(1)
+    lo, hi = character().joint_range.T + np.array([[0.1], [-0.1]])  # away from joint limits
+    d.qpos[7:] = np.clip(rng.uniform(-0.2, 0.2, m.nu), lo, hi)
+    target = d.qpos[7:] + rng.uniform(-0.05, 0.05, m.nu)
+    mx = sim.mjx_model(cfg)
+    dx = mjx.make_data(mx).replace(qpos=jnp.asarray(d.qpos, jnp.float32))
+    with jit_enabled():
+        dx = jax.jit(sim.pd_step, static_argnums=3)(mx, dx, jnp.asarray(target, jnp.float32), cfg.substeps)
+    d.ctrl[:] = target
+    for _ in range(cfg.substeps):
+        mujoco.mj_step(m, d)
+    np.testing.assert_allclose(np.asarray(dx.qpos), d.qpos, atol=1e-4)
+    np.testing.assert_allclose(np.asarray(dx.qvel), d.qvel, atol=1e-2)
+
+
+def test_substeps_validation():
+    assert sim.PhysicsConfig().substeps == 4
+    with pytest.raises(ValueError, match="multiple"):
+        _ = sim.PhysicsConfig(sim_hz=100, control_hz=30).substeps
+
+
+def test_mjcf_has_no_passive_springs():
+    m = mujoco.MjModel.from_xml_string(build_mjcf())
+    assert np.all(m.jnt_stiffness == 0) and np.all(m.dof_damping == 0)
