@@ -1,0 +1,248 @@
+"""The humanoid environment on MJX: reference-state init, PD control, falls, discriminator views.
+
+``HumanoidEnv(cfg)`` holds static things (MJX model, motion libraries, index arrays); its
+``reset(rng)`` and ``step(state, action)`` are pure functions of an ``EnvState`` pytree, made to be
+vmapped over environments and scanned over time. ``step`` resets an environment that terminated
+or timed out (the reset state comes back in ``state``; the pre-reset observation is kept in
+``StepOut.final_obs`` for bootstrapping), and an environment whose physics went non-finite is
+reset without its NaNs reaching the batch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+from mujoco import mjx
+
+from jaxmotion.envs import observations as O
+from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
+from jaxmotion.motion.motionlib import MotionLib, load_motionlib, qpos_qvel, sample, sample_times, sample_windows
+from jaxmotion.physics import sim
+from jaxmotion.physics.character import character
+
+
+@dataclasses.dataclass(frozen=True)
+class GroupConfig:
+    """A body group with its own discriminator and reference clips."""
+
+    name: str = "full"
+    """A default group (upper, lower, arms, rest, full) or a new name with ``links`` given."""
+    motions: tuple[str, ...] = ()
+    """Reference clips (files or folders, relative to the data directory) for this group."""
+    links: tuple[str, ...] = ()
+    """Link names; empty means the default group of that name."""
+    anchor: str = "default"
+    """Link the observation is expressed against; 'heading' for the heading frame; 'default'
+    for the default group's anchor."""
+    frames: int = 5
+    """Window length n+2 frames: t-n ... t+1."""
+    speed_range: tuple[float, float] = (1.0, 1.0)
+    """Random replay-speed range of the reference windows (the paper uses (0.8, 1.2) for some)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvConfig:
+    """The imitation environment."""
+
+    physics: sim.PhysicsConfig = sim.PhysicsConfig()
+    init_motions: tuple[str, ...] = ()
+    """Clips for reference-state initialisation; empty means the first group's clips."""
+    groups: tuple[GroupConfig, ...] = (GroupConfig(),)
+    episode_steps: int = 300
+    """Episode time limit in control steps (300 = 10 s at 30 Hz)."""
+    policy_frames: int = 2
+    """Frames of link state in the policy observation (current plus history)."""
+    early_termination: bool = True
+    """End the episode when a body other than the feet touches the ground."""
+    contact_grace_steps: int = 2
+    """Steps after reset in which ground contact does not end the episode."""
+    allowed_contacts: tuple[str, ...] = ("right_foot", "left_foot")
+    action_scale: float = 1.0
+    """PD target = mid-range + action_scale * action * half-range; action ±1 reaches the limits."""
+    max_qvel: float = 100.0
+    """|qvel| above this counts as unstable physics: the environment is reset."""
+
+
+@struct.dataclass
+class EnvState:
+    """One environment's state. ``hist`` holds the last link frames, oldest first."""
+
+    data: mjx.Data
+    hist: O.LinkFrames
+    steps: jax.Array
+    rng: jax.Array
+
+
+@struct.dataclass
+class StepOut:
+    """What a control step reports. Observations are already flat vectors.
+
+    Attributes:
+      obs: [obs_dim] policy observation of the returned state (after an automatic reset).
+      final_obs: [obs_dim] policy observation reached by this step (before any reset).
+      disc_obs: per group [disc_dim_g], the window t-n ... t+1 ending at the reached state.
+      terminated: fell or unstable (no bootstrap); truncated: hit the time limit (bootstrap).
+      unstable: the physics went non-finite or too fast and was reset.
+    """
+
+    obs: jax.Array
+    final_obs: jax.Array
+    disc_obs: tuple[jax.Array, ...]
+    terminated: jax.Array
+    truncated: jax.Array
+    unstable: jax.Array
+
+
+class HumanoidEnv:
+    """Pure-functional humanoid imitation environment (see module docstring)."""
+
+    def __init__(self, cfg: EnvConfig, motion_libs: Sequence[MotionLib] | None = None,
+                 init_lib: MotionLib | None = None):
+        self.cfg = cfg
+        self.character = character(cfg.physics.sword_shield)
+        self.model = sim.mjx_model(cfg.physics)
+        ch = self.character
+        if not cfg.groups:
+            raise ValueError("EnvConfig.groups is empty: at least one body group is needed")
+        self.groups = []
+        defaults = default_groups(ch)
+        for g in cfg.groups:
+            if g.links:
+                links = g.links
+            elif g.name in defaults:
+                links = defaults[g.name].links
+            else:
+                raise ValueError(f"group {g.name!r} is not a default group ({sorted(defaults)}) and gives no links")
+            if g.anchor == "default":
+                anchor = defaults[g.name].anchor if g.name in defaults else None
+            else:
+                anchor = None if g.anchor == "heading" else g.anchor
+            self.groups.append(resolve_group({"name": g.name, "links": links, "anchor": anchor}, ch))
+        self.group_idx = [group_indices(g, ch) for g in self.groups]
+        if motion_libs is None:
+            motion_libs = [load_motionlib(g.motions, ch) for g in cfg.groups]
+        self.motion_libs = tuple(motion_libs)
+        if init_lib is None:
+            init_lib = load_motionlib(cfg.init_motions, ch) if cfg.init_motions else self.motion_libs[0]
+        self.init_lib = init_lib
+        self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
+        lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
+        self._mid = jnp.asarray((lo + hi) / 2, jnp.float32)
+        self._half = jnp.asarray((hi - lo) / 2, jnp.float32)
+        # Geoms whose ground contact ends an episode (all but the allowed bodies' and the floor).
+        m = sim.mj_model(cfg.physics)
+        allowed = {ch.body_index(b) + 1 for b in cfg.allowed_contacts}
+        self._bad_geom = jnp.asarray([(m.geom_bodyid[g] not in allowed) and m.geom_bodyid[g] != 0
+                                      for g in range(m.ngeom)])
+        self._data0 = mjx.make_data(self.model)
+
+    # ---- sizes -------------------------------------------------------------------------
+    @property
+    def action_size(self) -> int:
+        return self.character.num_dof
+
+    @property
+    def obs_size(self) -> int:
+        return self.cfg.policy_frames * self.character.num_bodies * 15
+
+    def disc_obs_sizes(self) -> tuple[int, ...]:
+        return tuple(g.frames * len(idx[0]) * 9 for g, idx in zip(self.cfg.groups, self.group_idx))
+
+    @property
+    def dt(self) -> float:
+        return self.cfg.physics.control_dt
+
+    # ---- reset -------------------------------------------------------------------------
+    def reset(self, rng: jax.Array) -> tuple[EnvState, jax.Array]:
+        """Reference-state initialisation at a random clip time; history from the clip's past."""
+        rng, k = jax.random.split(rng)
+        clip, t = sample_times(self.init_lib, k, 1)
+        times = t[0] - self.dt * jnp.arange(self.hist_len - 1, -1, -1, dtype=jnp.float32)
+        ms = sample(self.init_lib, jnp.full_like(times, clip[0], dtype=jnp.int32), times)
+        qpos, qvel = qpos_qvel(jax.tree.map(lambda x: x[-1], ms))
+        data = self._data0.replace(qpos=qpos, qvel=qvel)
+        hist = O.LinkFrames(ms.body_pos, ms.body_quat, ms.body_lin_vel, ms.body_ang_vel)
+        state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng)
+        return state, self.policy_obs(state)
+
+    # ---- observations ------------------------------------------------------------------
+    def policy_obs(self, state: EnvState) -> jax.Array:
+        h = jax.tree.map(lambda x: x[-self.cfg.policy_frames:], state.hist)
+        return O.policy_obs(h)
+
+    def disc_obs(self, hist: O.LinkFrames) -> tuple[jax.Array, ...]:
+        """Per group, the discriminator view of the newest ``frames`` link frames."""
+        out = []
+        for g, (links, anchor) in zip(self.cfg.groups, self.group_idx):
+            out.append(O.disc_obs(hist.pos[-g.frames:], hist.quat[-g.frames:], links, int(anchor)))
+        return tuple(out)
+
+    def ref_disc_obs(self, rng: jax.Array, n: int) -> tuple[jax.Array, ...]:
+        """Per group, ``n`` reference windows from that group's clips: [n, disc_dim_g] each."""
+        out = []
+        keys = jax.random.split(rng, len(self.groups))
+        for k, g, lib, (links, anchor) in zip(keys, self.cfg.groups, self.motion_libs, self.group_idx):
+            w = sample_windows(lib, k, n, g.frames, self.dt, g.speed_range)
+            out.append(jax.vmap(lambda p, q: O.disc_obs(p, q, links, int(anchor)))(w.body_pos, w.body_quat))
+        return tuple(out)
+
+    def link_frames(self, data: mjx.Data) -> O.LinkFrames:
+        """World-frame link states of ``data`` (its kinematics must be current)."""
+        pos, quat = data.xpos[1:], data.xquat[1:]
+        ang = data.cvel[1:, :3]
+        com = data.subtree_com[1]  # every link's velocity is referred to the root subtree's CoM
+        lin = data.cvel[1:, 3:] + jnp.cross(ang, pos - com)
+        return O.LinkFrames(pos, quat, lin, ang)
+
+    def kinematics(self, data: mjx.Data, model: mjx.Model | None = None) -> mjx.Data:
+        """Positions, orientations and velocities of the links at the current qpos/qvel."""
+        model = self.model if model is None else model
+        data = mjx.kinematics(model, data)
+        data = mjx.com_pos(model, data)
+        return mjx.com_vel(model, data)
+
+    # ---- step --------------------------------------------------------------------------
+    def pd_target(self, action: jax.Array) -> jax.Array:
+        return self._mid + self.cfg.action_scale * action * self._half
+
+    def action_for_target(self, target: jax.Array) -> jax.Array:
+        """The action whose PD target is ``target`` [.., n_dof] (inverse of ``pd_target``)."""
+        return (target - self._mid) / (self.cfg.action_scale * self._half)
+
+    def step(self, state: EnvState, action: jax.Array, model: mjx.Model | None = None
+             ) -> tuple[EnvState, StepOut]:
+        """One control step; ``model`` overrides the env's MJX model (same shapes, e.g. other gains)."""
+        cfg = self.cfg
+        model = self.model if model is None else model
+        data = sim.pd_step(model, state.data, self.pd_target(action), cfg.physics.substeps)
+        # The last mjx.step integrated after its collision pass, so contacts are one substep old;
+        # kinematics is recomputed at the new state for the observations.
+        contact = data._impl.contact
+        touching = (contact.dist < 0.0) & self._bad_geom[jnp.max(contact.geom, axis=-1)]
+        data = self.kinematics(data, model)
+        frame = self.link_frames(data)
+        hist = jax.tree.map(lambda h, f: jnp.concatenate([h[1:], f[None]], 0), state.hist, frame)
+        steps = state.steps + 1
+        finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+        unstable = ~finite | jnp.any(jnp.abs(data.qvel) > cfg.max_qvel)
+        fell = cfg.early_termination & jnp.any(touching) & (steps > cfg.contact_grace_steps)
+        terminated = fell | unstable
+        truncated = (steps >= cfg.episode_steps) & ~terminated
+        clean = lambda x: jnp.where(unstable, 0.0, jnp.nan_to_num(x, posinf=0.0, neginf=0.0))
+        hist = jax.tree.map(clean, hist)
+        new_state = EnvState(data=data, hist=hist, steps=steps, rng=state.rng)
+        final_obs = self.policy_obs(new_state)
+        dobs = self.disc_obs(hist)
+        rng, k = jax.random.split(state.rng)
+        reset_state, reset_obs = self.reset(k)
+        done = terminated | truncated
+        new_state = new_state.replace(rng=rng)
+        out_state = jax.tree.map(lambda a, b: jnp.where(done, a, b), reset_state, new_state)
+        obs = jnp.where(done, reset_obs, final_obs)
+        return out_state, StepOut(obs=obs, final_obs=final_obs, disc_obs=dobs, terminated=terminated,
+                                  truncated=truncated, unstable=unstable)

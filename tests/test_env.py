@@ -1,0 +1,160 @@
+"""The humanoid environment: standing, falls, determinism, NaN resets, sim/reference views."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+from conftest import jit_enabled
+from jaxmotion.envs import observations as O
+from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
+from jaxmotion.motion import MotionLib, make_test_clip, qpos_qvel, sample
+from jaxmotion.physics import sim
+
+B = 3
+
+
+def _moving_clip():
+    """A clip with every joint moving smoothly, a turning and translating root."""
+    t = np.arange(40)[:, None] / 30.0
+    dof = 0.3 * np.sin(2.0 * t + np.arange(28)[None] * 0.7)
+    return make_test_clip(40, 30.0, root_vel=(0.5, 0.2, 0.0), root_height=1.0, yaw_rate=0.8,
+                          dof_pos=dof, name="moving")
+
+
+@pytest.fixture(scope="module")
+def env():
+    stand = make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87, name="stand")
+    lib = MotionLib.from_clips([stand])
+    moving = MotionLib.from_clips([_moving_clip()])
+    cfg = EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")), episode_steps=70)
+    return HumanoidEnv(cfg, motion_libs=(moving, moving), init_lib=lib)
+
+
+@pytest.fixture(scope="module")
+def fns(env):
+    with jit_enabled():
+        reset = jax.jit(jax.vmap(env.reset))
+        step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, None)))
+        kin = jax.jit(env.kinematics)
+    return reset, step, kin
+
+
+def _zero_gain_model(env):
+    m = sim.mj_model(env.cfg.physics)
+    m.actuator_gainprm[:, 0] = 0
+    m.actuator_biasprm[:, 1:3] = 0
+    return sim.mjx.put_model(m)
+
+
+def _run(fns, env, model, key, actions):
+    reset, step, _ = fns
+    with jit_enabled():
+        state, obs = reset(jax.random.split(key, B))
+        outs, zs = [], []
+        for a in actions:
+            state, out = step(state, a, model)
+            outs.append(out)
+            zs.append(state.data.qpos[:, 2])
+    return state, obs, outs, jnp.stack(zs)
+
+
+def test_sizes(env):
+    assert env.obs_size == 2 * 15 * 15
+    assert env.disc_obs_sizes() == (5 * 8 * 9, 5 * 7 * 9)
+    assert env.cfg.physics.substeps == 4
+
+
+def test_standing_holds_for_2s_and_zero_gains_fall(env, fns):
+    hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (60, B, 28))
+    _, _, outs, z = _run(fns, env, env.model, jax.random.PRNGKey(0), hold)
+    assert not any(bool(o.terminated.any()) for o in outs)
+    assert float(z.min()) > 0.8, "the PD servo should hold the standing pose for 2 s"
+    _, _, outs, z = _run(fns, env, _zero_gain_model(env), jax.random.PRNGKey(0), hold)
+    fell = jnp.stack([o.terminated for o in outs])
+    assert bool(fell.any(0).all()), "without gains every character should fall and terminate"
+    assert not bool(jnp.stack([o.unstable for o in outs]).any())
+
+
+def test_time_limit_truncates_and_resets(env, fns):
+    hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (71, B, 28))
+    state, _, outs, _ = _run(fns, env, env.model, jax.random.PRNGKey(3), hold)
+    trunc = jnp.stack([o.truncated for o in outs])
+    assert bool(trunc[69].all()) and not bool(trunc[:69].any())
+    assert int(state.steps[0]) == 1  # reset at step 70, then one more step
+
+
+def test_reset_step_deterministic_finite(env, fns):
+    acts = 0.5 * jax.random.normal(jax.random.PRNGKey(1), (20, B, 28))
+    s1, o1, out1, _ = _run(fns, env, env.model, jax.random.PRNGKey(2), acts)
+    s2, o2, out2, _ = _run(fns, env, env.model, jax.random.PRNGKey(2), acts)
+    np.testing.assert_array_equal(o1, o2)
+    for a, b in zip(jax.tree.leaves(s1), jax.tree.leaves(s2)):
+        np.testing.assert_array_equal(a, b)
+    assert o1.shape == (B, env.obs_size)
+    for o in out1:
+        assert o.obs.shape == (B, env.obs_size) and o.final_obs.shape == (B, env.obs_size)
+        assert [d.shape for d in o.disc_obs] == [(B, n) for n in env.disc_obs_sizes()]
+        assert all(bool(jnp.isfinite(x).all()) for x in jax.tree.leaves(o))
+    assert all(bool(jnp.isfinite(x).all()) for x in jax.tree.leaves(s1))
+
+
+def test_nan_physics_resets_only_that_env(env, fns):
+    reset, step, _ = fns
+    with jit_enabled():
+        state, _ = reset(jax.random.split(jax.random.PRNGKey(4), B))
+        bad = state.replace(data=state.data.replace(qvel=state.data.qvel.at[1, 10].set(jnp.nan)))
+        hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (B, 28))
+        new, out = step(bad, hold, env.model)
+        ref, ref_out = step(state, hold, env.model)
+    assert bool(out.unstable[1]) and bool(out.terminated[1]) and not bool(out.unstable[jnp.array([0, 2])].any())
+    assert all(bool(jnp.isfinite(x).all()) for x in jax.tree.leaves((new, out)))
+    assert int(new.steps[1]) == 0  # was reset
+    np.testing.assert_array_equal(new.data.qpos[0], ref.data.qpos[0])  # others untouched
+
+
+def test_link_velocities_match_mujoco(env, fns):
+    _, _, kin = fns
+    m = sim.mj_model(env.cfg.physics)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    d.qpos[:3] = [0.3, -0.2, 1.1]
+    d.qpos[3:7] = np.array([0.9, 0.1, -0.2, 0.3]) / np.linalg.norm([0.9, 0.1, -0.2, 0.3])
+    d.qpos[7:] = rng.uniform(-0.3, 0.3, 28)
+    d.qvel[:] = rng.uniform(-1, 1, 34)
+    mujoco.mj_forward(m, d)
+    dx = env._data0.replace(qpos=jnp.asarray(d.qpos, jnp.float32), qvel=jnp.asarray(d.qvel, jnp.float32))
+    with jit_enabled():
+        lf = env.link_frames(kin(dx))
+    res = np.zeros(6)
+    for b in range(15):
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_XBODY, b + 1, res, 0)
+        np.testing.assert_allclose(lf.ang_vel[b], res[:3], atol=1e-4)
+        np.testing.assert_allclose(lf.lin_vel[b], res[3:], atol=1e-4)
+    np.testing.assert_allclose(lf.pos, d.xpos[1:], atol=1e-5)
+
+
+def test_reference_and_simulation_discriminator_views_agree(env, fns):
+    """Set the simulator to reference states frame by frame: both sides see the same window."""
+    _, _, kin = fns
+    lib = env.motion_libs[0]
+    times = jnp.asarray(0.4 + env.dt * np.arange(5), jnp.float32)
+    ms = sample(lib, jnp.zeros(5, jnp.int32), times)
+    frames = []
+    with jit_enabled():
+        for k in range(5):
+            qpos, qvel = qpos_qvel(jax.tree.map(lambda x: x[k], ms))
+            frames.append(env.link_frames(kin(env._data0.replace(qpos=qpos, qvel=qvel))))
+    hist = jax.tree.map(lambda *x: jnp.stack(x), *frames)
+    sim_views = env.disc_obs(hist)
+    for g, (links, anchor) in enumerate(env.group_idx):
+        ref_view = O.disc_obs(ms.body_pos, ms.body_quat, links, int(anchor))
+        np.testing.assert_allclose(sim_views[g], ref_view, atol=2e-4)
+    # The policy sees the same link positions and orientations, too.
+    ref_hist = O.LinkFrames(ms.body_pos, ms.body_quat, hist.lin_vel, hist.ang_vel)
+    np.testing.assert_allclose(O.policy_obs(hist), O.policy_obs(ref_hist), atol=2e-4)
