@@ -642,6 +642,9 @@ def load_experiment(name: str, root: pathlib.Path | str | None = None) -> Any:
         raise ConfigError(
             f"unknown experiment {name!r}{hint}: no file {path}. Available in {root}: {listing}"
         )
+    # Experiment files may import shared helpers (``_common.py``) from the experiments folder.
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
     module = _exec_file(path, _module_name(name))
     factory = getattr(module, "config", None)
     if not callable(factory):

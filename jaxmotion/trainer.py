@@ -1,0 +1,374 @@
+"""The compiled learning loop: rollout, discriminator update, rewards, GAE, PopArt, PPO.
+
+One iteration (``_iteration``) is a pure function of a ``TrainState``; ``make_train_chunk``
+scans ``K`` of them under one ``jax.jit`` with the state donated. The environment batch is
+sharded over ``jax.devices()`` along a ``data`` mesh axis and everything else is replicated, so
+XLA inserts the gradient all-reduce (synchronous data parallelism, as in DD-PPO).
+
+Objectives: one per body-group discriminator (and, later, per goal reward), each with its own
+critic head, GAE and PopArt normaliser; advantages are standardised per objective and combined
+with weights ω (Σω = 1) into one PPO surrogate. ``multi_objective=False`` sums the rewards into
+one objective with one critic head; ``popart=False`` trains the critic on raw returns.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from flax import struct
+from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
+
+from jaxmotion.algos import disc as D
+from jaxmotion.algos import gae as G
+from jaxmotion.algos import normalizer as N
+from jaxmotion.algos import popart as PA
+from jaxmotion.algos import ppo as PPO
+from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
+from jaxmotion.nets import networks as nets
+
+
+@dataclasses.dataclass(frozen=True)
+class NetConfig:
+    """Network sizes (defaults: the authors' code, minus the GRU)."""
+
+    policy_hidden: tuple[int, ...] = (1024, 512)
+    critic_hidden: tuple[int, ...] = (1024, 512)
+    activation: str = "relu6"
+    state_dependent_std: bool = True
+    init_log_std: float = -3.0
+    """Initial log σ of the Gaussian policy (the paper's code starts at -3)."""
+    disc_hidden: tuple[int, ...] = (256, 128)
+    disc_heads: int = 32
+    """Heads per discriminator ensemble (N in the paper)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+    """PPO with multiple objectives (defaults: the paper's experiments)."""
+
+    num_envs: int = 512
+    horizon: int = 8
+    minibatch_size: int = 256
+    epochs: int = 5
+    gamma: float = 0.95
+    lam: float = 0.95
+    clip_eps: float = 0.2
+    max_grad_norm: float = 1.0
+    actor_lr: float = 5e-6
+    critic_lr: float = 1e-4
+    value_coef: float = 0.5
+    entropy_coef: float = 0.0
+    multi_objective: bool = True
+    """False: the w/o-MO ablation (rewards summed with ω, one critic head)."""
+    popart: bool = True
+    """False: the w/o-PopArt ablation (critic trained on raw returns)."""
+    popart_beta: float = 0.1
+    objective_weights: tuple[float, ...] = ()
+    """ω per objective (groups, then goals); empty = uniform. Renormalised to sum to 1."""
+    per_objective_clip: bool = False
+    """True: clip each ω_k Ā_k term separately (the authors' code) instead of Eq. 9."""
+    terminate_reward: float = -1.0
+    """Reward of every objective on a terminating step (the authors' code uses -1)."""
+    obs_clip: float = 5.0
+
+
+@dataclasses.dataclass(frozen=True)
+class DiscConfig:
+    """Discriminator ensembles: hinge loss with gradient penalty."""
+
+    lr: float = 1e-5
+    gp_weight: float = 10.0
+    gp_mode: str = "per_head"
+    """'per_head' (paper Eq. 2) or 'sum_heads' (the authors' code)."""
+    minibatch_size: int = 256
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """A complete experiment: environment, networks, algorithm and run settings."""
+
+    env: EnvConfig = EnvConfig()
+    net: NetConfig = NetConfig()
+    ppo: PPOConfig = PPOConfig()
+    disc: DiscConfig = DiscConfig()
+    seed: int = 0
+    iterations: int = 1000
+    """Training iterations (each collects num_envs * horizon samples)."""
+    chunk: int = 10
+    """Iterations per compiled call; Python logs and checkpoints between chunks."""
+    checkpoint_every: int = 10
+    """Chunks between checkpoints."""
+    resume: str = ""
+    """A run folder to continue from its latest checkpoint."""
+    eval_episodes: int = 4
+
+    @property
+    def samples_per_iteration(self) -> int:
+        return self.ppo.num_envs * self.ppo.horizon
+
+
+@struct.dataclass
+class TrainState:
+    """Everything the loop carries; a pytree, checkpointed whole."""
+
+    env_state: EnvState
+    obs: jax.Array
+    policy_params: Any
+    critic_params: Any
+    disc_params: tuple
+    opt_state: Any
+    disc_opt_state: tuple
+    obs_norm: N.NormalizerState
+    disc_norm: tuple
+    popart: PA.PopArtState
+    rng: jax.Array
+    iteration: jax.Array
+
+
+@struct.dataclass
+class Transition:
+    """One control step of the rollout, for every environment ([T, B, ...] after the scan)."""
+
+    obs: jax.Array
+    action: jax.Array
+    log_prob: jax.Array
+    final_obs: jax.Array
+    disc_obs: tuple
+    terminated: jax.Array
+    truncated: jax.Array
+    unstable: jax.Array
+
+
+class Learner:
+    """Static pieces of a run (env, networks, optimisers) and its pure update functions."""
+
+    def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None):
+        self.cfg = cfg
+        self.env = env if env is not None else HumanoidEnv(cfg.env)
+        n_groups = len(cfg.env.groups)
+        self.num_objectives = n_groups if cfg.ppo.multi_objective else 1
+        w = np.asarray(cfg.ppo.objective_weights or [1.0] * n_groups, np.float64)
+        if len(w) != n_groups or np.any(w < 0) or w.sum() <= 0:
+            raise ValueError(f"objective_weights must be {n_groups} non-negative numbers, got {cfg.ppo.objective_weights}")
+        self.reward_weights = jnp.asarray(w / w.sum(), jnp.float32)
+        self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
+        nc = cfg.net
+        self.policy = nets.make_policy_network(
+            self.env.obs_size, self.env.action_size, hidden_sizes=nc.policy_hidden, activation=nc.activation,
+            state_dependent_std=nc.state_dependent_std, init_log_std=nc.init_log_std)
+        self.critic = nets.make_critic_network(
+            self.env.obs_size, self.num_objectives, hidden_sizes=nc.critic_hidden, activation=nc.activation)
+        self.discs = tuple(nets.make_discriminator_network(d, nc.disc_heads, hidden_sizes=nc.disc_hidden)
+                           for d in self.env.disc_obs_sizes())
+        pc = cfg.ppo
+        self.optimizer = optax.chain(
+            optax.clip_by_global_norm(pc.max_grad_norm),
+            optax.multi_transform({"actor": optax.adam(pc.actor_lr), "critic": optax.adam(pc.critic_lr)},
+                                  {"actor": "actor", "critic": "critic"}))
+        self.disc_optimizer = optax.adam(cfg.disc.lr)
+        self._check_batch()
+
+    def _check_batch(self):
+        pc = self.cfg.ppo
+        n = pc.num_envs * pc.horizon
+        if n % pc.minibatch_size or n % self.cfg.disc.minibatch_size:
+            raise ValueError(f"num_envs*horizon ({n}) must be a multiple of the minibatch sizes "
+                             f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})")
+
+    # ---- init ----------------------------------------------------------------------------
+    def init(self, rng: jax.Array) -> TrainState:
+        """A fresh TrainState (un-sharded; see ``shard_state``)."""
+        k_env, k_pol, k_crit, k_disc, rng = jax.random.split(rng, 5)
+        env_state, obs = jax.vmap(self.env.reset)(jax.random.split(k_env, self.cfg.ppo.num_envs))
+        pp = self.policy.init(k_pol)
+        cp = self.critic.init(k_crit)
+        dps = tuple(d.init(k) for d, k in zip(self.discs, jax.random.split(k_disc, len(self.discs))))
+        return TrainState(
+            env_state=env_state, obs=obs, policy_params=pp, critic_params=cp, disc_params=dps,
+            opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
+            disc_opt_state=tuple(self.disc_optimizer.init(p) for p in dps),
+            obs_norm=N.normalizer_init(self.env.obs_size),
+            disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
+            popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32))
+
+    # ---- acting --------------------------------------------------------------------------
+    def act(self, ts: TrainState, obs: jax.Array, rng: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+        """Samples (or, with ``rng=None``, takes the mean) action [B, A] and its log-prob [B]."""
+        mean, log_std = self.policy.apply(ts.policy_params, N.normalize(ts.obs_norm, obs, self.cfg.ppo.obs_clip))
+        if rng is None:
+            return mean, jnp.zeros(mean.shape[:-1])
+        action = mean + jnp.exp(log_std) * jax.random.normal(rng, mean.shape)
+        return action, PPO.gaussian_log_prob(mean, log_std, action)
+
+    def rollout(self, ts: TrainState) -> tuple[TrainState, Transition]:
+        """Unrolls the policy for ``horizon`` control steps in every environment."""
+        def step(carry, key):
+            env_state, obs = carry
+            action, logp = self.act(ts, obs, key)
+            env_state, out = jax.vmap(self.env.step)(env_state, action)
+            tr = Transition(obs=obs, action=action, log_prob=logp, final_obs=out.final_obs,
+                            disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
+                            unstable=out.unstable)
+            return (env_state, out.obs), tr
+
+        rng, key = jax.random.split(ts.rng)
+        keys = jax.random.split(key, self.cfg.ppo.horizon)
+        (env_state, obs), traj = jax.lax.scan(step, (ts.env_state, ts.obs), keys)
+        return ts.replace(env_state=env_state, obs=obs, rng=rng), traj
+
+    # ---- discriminators --------------------------------------------------------------------
+    def _update_disc(self, net, params, opt_state, norm, pol, ref, rng):
+        """One pass of minibatches over [n, D] policy and reference windows; returns new state."""
+        dc = self.cfg.disc
+        norm = N.normalizer_update(norm, jnp.concatenate([pol, ref], 0))
+        k_perm, k_gp = jax.random.split(rng)
+        n = pol.shape[0]
+        nmb = n // dc.minibatch_size
+        perm = jax.random.permutation(k_perm, n)
+        mb = lambda x: N.normalize(norm, x[perm], None).reshape(nmb, dc.minibatch_size, -1)
+
+        def body(carry, xs):
+            p, o = carry
+            x_pol, x_ref, k = xs
+            (_, m), grads = jax.value_and_grad(D.disc_loss, argnums=1, has_aux=True)(
+                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode)
+            updates, o = self.disc_optimizer.update(grads, o, p)
+            return (optax.apply_updates(p, updates), o), m
+
+        (params, opt_state), metrics = jax.lax.scan(
+            body, (params, opt_state), (mb(pol), mb(ref), jax.random.split(k_gp, nmb)))
+        return params, opt_state, norm, jax.tree.map(jnp.mean, metrics)
+
+    def disc_step(self, ts: TrainState, traj: Transition):
+        """Updates every ensemble on this rollout vs fresh reference windows; returns rewards [T,B,G]."""
+        T, B = traj.terminated.shape
+        rng, k_ref, k_upd = jax.random.split(ts.rng, 3)
+        refs = self.env.ref_disc_obs(k_ref, T * B)
+        new_p, new_o, new_n, rewards, metrics = [], [], [], [], {}
+        for g, (net, key) in enumerate(zip(self.discs, jax.random.split(k_upd, len(self.discs)))):
+            pol = traj.disc_obs[g].reshape(T * B, -1)
+            p, o, n, m = self._update_disc(net, ts.disc_params[g], ts.disc_opt_state[g], ts.disc_norm[g],
+                                           pol, refs[g], key)
+            logits = net.apply(p, N.normalize(n, pol, None))
+            rewards.append(D.disc_reward(logits).reshape(T, B))
+            new_p.append(p); new_o.append(o); new_n.append(n)
+            name = self.cfg.env.groups[g].name
+            metrics.update({f"disc/{name}/{k}": v for k, v in m.items()})
+            metrics[f"reward/{name}"] = jnp.mean(rewards[-1])
+        ts = ts.replace(disc_params=tuple(new_p), disc_opt_state=tuple(new_o), disc_norm=tuple(new_n), rng=rng)
+        return ts, jnp.stack(rewards, -1), metrics
+
+    # ---- PPO -----------------------------------------------------------------------------
+    def values(self, ts: TrainState, obs: jax.Array) -> jax.Array:
+        """Unnormalised values [..., K] of raw observations."""
+        v = self.critic.apply(ts.critic_params, N.normalize(ts.obs_norm, obs, self.cfg.ppo.obs_clip))
+        return PA.denormalize(ts.popart, v) if self.cfg.ppo.popart else v
+
+    def ppo_step(self, ts: TrainState, traj: Transition, rewards: jax.Array):
+        """GAE per objective, PopArt, then PPO epochs over minibatches."""
+        pc = self.cfg.ppo
+        if not pc.multi_objective:
+            rewards = (rewards * self.reward_weights).sum(-1, keepdims=True)
+        rewards = jnp.where(traj.terminated[..., None], pc.terminate_reward, rewards)
+        values = self.values(ts, traj.obs)
+        next_values = self.values(ts, traj.final_obs)
+        adv, returns = G.compute_gae(rewards, values, next_values, traj.terminated.astype(jnp.float32),
+                                     traj.truncated.astype(jnp.float32), pc.gamma, pc.lam)
+        metrics = {}
+        if pc.popart:
+            new_pa = PA.popart_update(ts.popart, returns, pc.popart_beta)
+            w, b = nets.value_head(ts.critic_params)
+            w, b = PA.preserve_outputs(ts.popart, new_pa, w, b)
+            ts = ts.replace(popart=new_pa, critic_params=nets.replace_value_head(ts.critic_params, w, b))
+            metrics["popart/mean"] = new_pa.mean
+            metrics["popart/std"] = PA.std(new_pa)
+        n = rewards.shape[0] * rewards.shape[1]
+        flat = lambda x: x.reshape((n,) + x.shape[2:])
+        _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights)
+        nobs = N.normalize(ts.obs_norm, flat(traj.obs), pc.obs_clip)
+        batch = PPO.PPOBatch(obs=nobs, actions=flat(traj.action), log_probs=flat(traj.log_prob),
+                             advantages=std_adv, returns=flat(returns))
+        popart_state = ts.popart if pc.popart else None
+
+        def loss_fn(params, mb):
+            return PPO.ppo_losses(params["actor"], params["critic"], mb, self.policy.apply, self.critic.apply,
+                                  self.objective_weights, popart_state, pc.clip_eps, pc.value_coef,
+                                  pc.entropy_coef, pc.per_objective_clip)
+
+        nmb = n // pc.minibatch_size
+
+        def sgd_step(carry, mb):
+            params, opt_state = carry
+            (_, m), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, mb)
+            updates, opt_state = self.optimizer.update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), m
+
+        def epoch(carry, key):
+            perm = jax.random.permutation(key, n)
+            mbs = jax.tree.map(lambda x: x[perm].reshape((nmb, pc.minibatch_size) + x.shape[1:]), batch)
+            return jax.lax.scan(sgd_step, carry, mbs)
+
+        rng, key = jax.random.split(ts.rng)
+        params = {"actor": ts.policy_params, "critic": ts.critic_params}
+        (params, opt_state), m = jax.lax.scan(epoch, (params, ts.opt_state), jax.random.split(key, pc.epochs))
+        metrics.update({f"ppo/{k}": jnp.mean(v) for k, v in m.items()})
+        for k in range(rewards.shape[-1]):
+            metrics[f"return/{k}"] = jnp.mean(returns[..., k])
+        ts = ts.replace(policy_params=params["actor"], critic_params=params["critic"], opt_state=opt_state, rng=rng)
+        return ts, metrics
+
+    # ---- one iteration -------------------------------------------------------------------
+    def iteration(self, ts: TrainState, _=None) -> tuple[TrainState, dict]:
+        ts, traj = self.rollout(ts)
+        ts, rewards, metrics = self.disc_step(ts, traj)
+        ts, m = self.ppo_step(ts, traj, rewards)
+        metrics.update(m)
+        # Observation statistics move after the update, so the update saw the rollout's own.
+        valid = ~traj.unstable.reshape(-1)
+        obs_norm = N.normalizer_update(ts.obs_norm, traj.obs.reshape(-1, traj.obs.shape[-1]), valid)
+        done = traj.terminated | traj.truncated
+        metrics["env/terminated"] = jnp.mean(traj.terminated)
+        metrics["env/unstable"] = jnp.mean(traj.unstable)
+        metrics["env/episodes_done"] = jnp.sum(done)
+        return ts.replace(obs_norm=obs_norm, iteration=ts.iteration + 1), metrics
+
+
+# ---- sharding and the compiled chunk -----------------------------------------------------
+def make_mesh(devices=None) -> Mesh:
+    """A 1-D mesh over ``devices`` (default: all) with axis name ``data``."""
+    devices = jax.devices() if devices is None else devices
+    return Mesh(np.asarray(devices), ("data",))
+
+
+def state_shardings(ts: TrainState, mesh: Mesh):
+    """Env states and observations split along the batch axis; everything else replicated."""
+    batch = NamedSharding(mesh, P("data"))
+    rep = NamedSharding(mesh, P())
+    sh = jax.tree.map(lambda _: rep, ts)
+    return sh.replace(env_state=jax.tree.map(lambda _: batch, ts.env_state), obs=batch)
+
+
+def shard_state(ts: TrainState, mesh: Mesh) -> TrainState:
+    return jax.device_put(ts, state_shardings(ts, mesh))
+
+
+def make_train_chunk(learner: Learner, mesh: Mesh, chunk: int, example: TrainState):
+    """``chunk`` iterations in one ``lax.scan`` under one ``jax.jit`` (state donated).
+
+    Returns ``f(ts) -> (ts, metrics)`` with metrics stacked over the chunk.
+    """
+    sh = state_shardings(example, mesh)
+
+    def run(ts):
+        def body(ts, _):
+            ts, m = learner.iteration(ts)
+            ts = jax.lax.with_sharding_constraint(ts, sh)
+            return ts, m
+        return jax.lax.scan(body, ts, None, length=chunk)
+
+    return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, None), donate_argnums=0)
