@@ -1,0 +1,377 @@
+"""Throughput benchmarks: physics only, policy rollout, and the full training loop.
+
+``python -m jaxmotion.bench [--quick] [--batches 1,64,256,1024] [--parts physics,rollout,train]
+[--exp smoke] [--out bench.json]`` prints a table and writes JSON.
+
+* **physics**: one jitted ``lax.scan`` over ``--steps`` control steps of ``vmap(pd_step)`` on a
+  batch of standing characters (PD targets 0, small random joint offsets so the batch elements
+  differ), state donated. Beside it, MuJoCo C steps the same model (``sim.mj_model``) from the
+  same initial states on the same cores with ``mujoco.rollout`` (native thread pool), falling back
+  to a Python loop over ``mj_step`` when that is unavailable (``mujoco_c_method`` says which).
+  Both are reported in control steps per second (one control step = ``substeps`` physics steps).
+* **rollout**: ``Learner.rollout`` (``horizon`` control steps of policy + env), jitted, donated.
+* **train**: ``make_train_chunk`` (``chunk`` whole iterations in one jitted scan).
+
+Compilation is timed separately (``compile_s``: lowering plus XLA compile) and followed by one
+untimed warm-up call; each measurement then repeats calls until ``--seconds`` have passed (the
+physics calls each from the same initial states). Batch 256 stays in the default list because
+jax 0.10.2 hung there (DESIGN.md); ``--timeout`` turns a hang into an exit with a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import faulthandler
+import functools
+import json
+import math
+import os
+import resource
+import sys
+import time
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+from jaxmotion.physics import sim
+
+ROOT_HEIGHT = 0.89
+"""Standing root height (m) of the humanoid with all joint angles 0."""
+DEFAULT_BATCHES = (1, 64, 256, 1024)
+GPU_EXTRA_BATCHES = (4096, 16384)
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchConfig:
+    """What to measure and for how long."""
+
+    batches: tuple[int, ...] = DEFAULT_BATCHES
+    steps: int = 8
+    """Control steps per physics call (the length of the jitted scan)."""
+    seconds: float = 3.0
+    """Minimum measuring time per number (calls repeat until it has passed)."""
+    noise: float = 0.02
+    """Standard deviation (rad) of the random joint-angle offsets of the initial states."""
+    seed: int = 0
+    exp: str = "smoke"
+    """Experiment whose config the rollout and train parts use (num_envs = batch)."""
+    iters: int = 0
+    """Train: iterations per compiled chunk; 0 keeps the experiment's ``chunk``."""
+    physics: sim.PhysicsConfig = sim.PhysicsConfig()
+
+
+# ---- helpers ------------------------------------------------------------------------------
+def num_cpus() -> int:
+    """CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def device_description() -> str:
+    """The first JAX device and the host's CPU model and count, in one line."""
+    d = jax.devices()[0]
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")), "")
+    except OSError:
+        pass
+    kind = f"{d.platform}:{d.device_kind}" if d.device_kind.lower() != d.platform else d.platform
+    return f"{kind} x{jax.device_count()}; host {cpu or 'cpu'}, {num_cpus()} CPUs"
+
+
+def peak_memory_mb() -> float:
+    """Peak device memory (MB) where the device reports it, else this process's max RSS (MB)."""
+    try:
+        stats = jax.devices()[0].memory_stats() or {}
+    except Exception:  # noqa: BLE001 - backends without memory stats raise various errors
+        stats = {}
+    if stats.get("peak_bytes_in_use"):
+        return stats["peak_bytes_in_use"] / 2**20
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux, bytes on macOS
+    return rss / (2**20 if sys.platform == "darwin" else 2**10)
+
+
+def time_calls(fn: Callable[[Any], Any], state: Any, seconds: float,
+               fresh: Callable[[], Any] | None = None) -> tuple[Any, int, float]:
+    """Calls ``state = fn(state)`` (blocking on the result) until ``seconds`` have passed.
+
+    Args:
+        fn: the function to time.
+        state: its first input; later calls get the previous output.
+        seconds: minimum total time of the calls (at least one call is made).
+        fresh: if given, every call starts from ``fresh()`` instead (made outside the timing).
+
+    Returns:
+        The last output, the number of calls and the seconds spent inside ``fn``.
+    """
+    n, elapsed = 0, 0.0
+    while n == 0 or elapsed < seconds:
+        if fresh is not None:
+            state = jax.block_until_ready(fresh())
+        t0 = time.perf_counter()
+        state = jax.block_until_ready(fn(state))
+        elapsed += time.perf_counter() - t0
+        n += 1
+    return state, n, elapsed
+
+
+def standing_qpos(m: mujoco.MjModel, batch: int, noise: float, seed: int) -> np.ndarray:
+    """[batch, nq] standing poses (identity root at 0.89 m) with random joint offsets."""
+    q = np.zeros((batch, m.nq))
+    q[:, 2], q[:, 3] = ROOT_HEIGHT, 1.0
+    q[:, 7:] = np.random.default_rng(seed).normal(0.0, noise, (batch, m.nq - 7))
+    return q
+
+
+# ---- physics ------------------------------------------------------------------------------
+def mjx_control_steps(cfg: BenchConfig, qpos: np.ndarray) -> dict[str, float]:
+    """MJX throughput on the initial poses ``qpos`` [B, nq]; control steps/s and compile s."""
+    model = sim.mjx_model(cfg.physics)
+    step = jax.vmap(functools.partial(sim.pd_step, substeps=cfg.physics.substeps), in_axes=(None, 0, None))
+
+    def run(model, data, target):
+        data, _ = jax.lax.scan(lambda d, _: (step(model, d, target), None), data, None, length=cfg.steps)
+        return data
+
+    d0 = mjx.make_data(model)
+    data = jax.vmap(lambda q: d0.replace(qpos=q))(jnp.asarray(qpos, d0.qpos.dtype))
+    target = jnp.zeros((model.nu,), d0.ctrl.dtype)
+    t0 = time.perf_counter()
+    compiled = jax.jit(run, donate_argnums=1).lower(model, data, target).compile()
+    compile_s = time.perf_counter() - t0
+    fn = lambda d: compiled(model, d, target)
+    # Every call starts from the initial poses, as the MuJoCo C rollouts do: held at zero targets
+    # with no balance control, the characters would fall over some tens of seconds in.
+    fresh = lambda: jax.tree.map(jnp.copy, data)
+    jax.block_until_ready(fn(fresh()))  # warm-up
+    out, calls, elapsed = time_calls(fn, None, cfg.seconds, fresh)
+    return {"mjx_control_steps_per_s": qpos.shape[0] * cfg.steps * calls / elapsed, "compile_s": compile_s,
+            "mjx_root_height": float(jnp.mean(out.qpos[:, 2]))}
+
+
+def mujoco_c_control_steps(cfg: BenchConfig, qpos: np.ndarray) -> dict[str, Any]:
+    """MuJoCo C throughput from the same initial poses, ctrl held at 0, on all usable CPUs."""
+    m = sim.mj_model(cfg.physics)
+    nstep = cfg.steps * cfg.physics.substeps
+    batch = qpos.shape[0]
+    d = mujoco.MjData(m)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    init = np.empty((batch, mujoco.mj_stateSize(m, spec)))
+    for i in range(batch):
+        mujoco.mj_resetData(m, d)
+        d.qpos[:] = qpos[i]
+        mujoco.mj_getState(m, d, init[i], spec)
+    try:
+        from mujoco import rollout
+    except ImportError:
+        rollout = None
+    if rollout is not None and hasattr(rollout, "Rollout"):
+        nthread = num_cpus()
+        datas = [mujoco.MjData(m) for _ in range(nthread)]
+        ctrl = np.zeros((1, 1, m.nu))
+        out = np.empty((batch, nstep, init.shape[1]))
+        with rollout.Rollout(nthread=nthread) as pool:
+            fn = lambda _: pool.rollout(m, datas, init, ctrl, nstep=nstep, state=out)
+            fn(None)  # warm-up
+            _, calls, elapsed = time_calls(fn, None, cfg.seconds)
+        method, height = f"mujoco.rollout nthread={nthread}", out[:, -1, 1 + 2].mean()
+    else:
+        datas = [mujoco.MjData(m) for _ in range(batch)]
+
+        def fn(_):
+            for dd, s in zip(datas, init):
+                mujoco.mj_setState(m, dd, s, spec)
+                dd.ctrl[:] = 0.0
+                mujoco.mj_step(m, dd, nstep)
+        _, calls, elapsed = time_calls(fn, None, cfg.seconds)
+        method, height = "python loop over mj_step (1 thread)", float(np.mean([dd.qpos[2] for dd in datas]))
+    return {"mujoco_c_control_steps_per_s": batch * cfg.steps * calls / elapsed, "mujoco_c_method": method,
+            "mujoco_c_root_height": float(height)}
+
+
+def bench_physics(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+    """One row per batch size: MJX and MuJoCo C control steps per second."""
+    rows = []
+    for b in cfg.batches:
+        log(f"physics: batch {b} ...")
+        qpos = standing_qpos(sim.mj_model(cfg.physics), b, cfg.noise, cfg.seed)
+        row = {"batch": b, **mjx_control_steps(cfg, qpos), **mujoco_c_control_steps(cfg, qpos)}
+        rows.append(row)
+        log(f"  mjx {row['mjx_control_steps_per_s']:.0f}/s (compile {row['compile_s']:.1f} s), "
+            f"C {row['mujoco_c_control_steps_per_s']:.0f}/s")
+    return rows
+
+
+# ---- rollout and train --------------------------------------------------------------------
+def _learner(cfg: BenchConfig, batch: int):
+    """A ``Learner`` for ``cfg.exp`` with ``num_envs = batch`` (minibatches shrunk to fit)."""
+    try:
+        from jaxmotion import config as C
+        from jaxmotion.trainer import Learner
+    except Exception as err:  # noqa: BLE001 - any import failure means the part cannot run
+        raise RuntimeError(f"the rollout/train benchmarks need jaxmotion.trainer and jaxmotion.envs.humanoid, "
+                           f"which failed to import: {type(err).__name__}: {err}") from err
+    tc = C.load_experiment(cfg.exp)
+    n = batch * tc.ppo.horizon
+    fit = lambda mb: math.gcd(n, mb)  # the largest size <= mb that divides the sample count
+    tc = dataclasses.replace(
+        tc, ppo=dataclasses.replace(tc.ppo, num_envs=batch, minibatch_size=fit(tc.ppo.minibatch_size)),
+        disc=dataclasses.replace(tc.disc, minibatch_size=fit(tc.disc.minibatch_size)))
+    if cfg.iters:
+        tc = dataclasses.replace(tc, chunk=cfg.iters)
+    return Learner(tc), tc
+
+
+def bench_rollout(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+    """Control steps/s of ``Learner.rollout`` (policy + env, ``horizon`` steps per call)."""
+    rows = []
+    for b in cfg.batches:
+        log(f"rollout: batch {b} ...")
+        learner, tc = _learner(cfg, b)
+        ts = learner.init(jax.random.PRNGKey(cfg.seed))
+        t0 = time.perf_counter()
+        compiled = jax.jit(learner.rollout, donate_argnums=0).lower(ts).compile()
+        compile_s = time.perf_counter() - t0
+        fn = lambda s: compiled(s[0])
+        state = jax.block_until_ready(fn((ts,)))
+        _, calls, elapsed = time_calls(fn, state, cfg.seconds)
+        rows.append({"batch": b, "control_steps_per_s": b * tc.ppo.horizon * calls / elapsed,
+                     "compile_s": compile_s})
+    return rows
+
+
+def bench_train(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
+    """Control steps/s of whole training iterations (``make_train_chunk``), compile time, memory."""
+    from jaxmotion.trainer import make_mesh, make_train_chunk, shard_state
+
+    rows = []
+    for b in cfg.batches:
+        log(f"train: batch {b} ...")
+        learner, tc = _learner(cfg, b)
+        mesh = make_mesh()
+        ts = shard_state(learner.init(jax.random.PRNGKey(cfg.seed)), mesh)
+        t0 = time.perf_counter()
+        compiled = make_train_chunk(learner, mesh, tc.chunk, ts).lower(ts).compile()
+        compile_s = time.perf_counter() - t0
+        fn = lambda s: compiled(s[0])
+        state = jax.block_until_ready(fn((ts,)))
+        _, calls, elapsed = time_calls(fn, state, cfg.seconds)
+        rows.append({"batch": b, "control_steps_per_s": b * tc.ppo.horizon * tc.chunk * calls / elapsed,
+                     "compile_s": compile_s, "peak_mem_mb": peak_memory_mb()})
+    return rows
+
+
+PARTS = {"physics": bench_physics, "rollout": bench_rollout, "train": bench_train}
+
+
+# ---- report -------------------------------------------------------------------------------
+def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> str:
+    """An aligned text table of ``rows``; ``columns`` are (header, key, format) triples."""
+    cells = [[h for h, _, _ in columns]]
+    cells += [[format(r[k], f) if k in r else "-" for _, k, f in columns] for r in rows]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in cells)
+
+
+def report(result: dict[str, Any]) -> str:
+    """The tables of every part that has rows."""
+    out = [f"device: {result['device']}  (jax {result['jax_version']}, mujoco {result['mujoco_version']})"]
+    if result["physics"]:
+        rows = [dict(r, ratio=r["mujoco_c_control_steps_per_s"] / r["mjx_control_steps_per_s"])
+                for r in result["physics"]]
+        out += ["", f"physics (control steps/s; 1 control step = {result['settings']['substeps']} physics steps; "
+                f"C: {rows[0]['mujoco_c_method']})",
+                format_table(rows, [("batch", "batch", "d"), ("mjx", "mjx_control_steps_per_s", ".0f"),
+                                    ("mujoco C", "mujoco_c_control_steps_per_s", ".0f"), ("C/mjx", "ratio", ".1f"),
+                                    ("compile s", "compile_s", ".1f"), ("mjx root z", "mjx_root_height", ".3f")])]
+    for part in ("rollout", "train"):
+        if result[part]:
+            out += ["", f"{part} (control steps/s)",
+                    format_table(result[part], [("batch", "batch", "d"), ("steps/s", "control_steps_per_s", ".0f"),
+                                                ("compile s", "compile_s", ".1f"), ("peak MB", "peak_mem_mb", ".0f")])]
+    for part, msg in result.get("errors", {}).items():
+        out += ["", f"{part}: FAILED: {msg}"]
+    return "\n".join(out)
+
+
+def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, Any]:
+    """Runs ``parts`` and returns the JSON-ready result; a failing part is reported in ``errors``.
+
+    Args:
+        cfg: what to measure.
+        parts: names from ``PARTS``, run in that order.
+        timeout: seconds after which a part that has not finished aborts the process with a
+            traceback (a hung compile or execution, as with jax 0.10.2); 0 disables.
+    """
+    result = {"device": device_description(), "jax_version": jax.__version__, "mujoco_version": mujoco.__version__,
+              "settings": {"control_steps_per_call": cfg.steps, "substeps": cfg.physics.substeps,
+                           "sim_hz": cfg.physics.sim_hz, "min_seconds": cfg.seconds, "exp": cfg.exp,
+                           # With a persistent cache, compile_s of a cache hit is the load time.
+                           "compilation_cache": jax.config.jax_compilation_cache_dir or None},
+              "physics": [], "rollout": [], "train": [], "errors": {}}
+    log = lambda s: print(s, file=sys.stderr, flush=True)
+    for part in parts:
+        if timeout > 0:
+            faulthandler.dump_traceback_later(timeout, exit=True)
+        try:
+            result[part] = PARTS[part](cfg, log)
+        except Exception as err:  # noqa: BLE001 - later parts and the JSON still get written
+            if part == "physics":
+                raise
+            result["errors"][part] = f"{type(err).__name__}: {err}"
+            log(f"{part}: FAILED: {result['errors'][part]}")
+        finally:
+            faulthandler.cancel_dump_traceback_later()
+    if hasattr(os, "getloadavg"):  # other processes on the host make the numbers noisy
+        result["settings"]["host_load_avg_1_5_15min"] = [round(x, 2) for x in os.getloadavg()]
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m jaxmotion.bench", description=__doc__.split("\n")[0])
+    p.add_argument("--quick", action="store_true", help="tiny run for tests: batches 1,4, 2 steps, no timing floor")
+    p.add_argument("--batches", help="comma-separated batch sizes (default 1,64,256,1024; on GPU also 4096,16384)")
+    p.add_argument("--parts", default="physics", help="comma-separated: physics,rollout,train")
+    p.add_argument("--steps", type=int, help="control steps per physics call (default 8, quick 2)")
+    p.add_argument("--seconds", type=float, help="minimum measuring time per number (default 3, quick 0)")
+    p.add_argument("--exp", default="smoke", help="experiment for rollout/train (default smoke)")
+    p.add_argument("--iters", type=int, default=0, help="train iterations per chunk (default: the experiment's)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--timeout", type=float, default=1800.0, help="abort a part that runs longer (s; 0: never)")
+    p.add_argument("--out", default="bench.json", help="JSON output file")
+    a = p.parse_args(argv)
+    parts = [s.strip() for s in a.parts.split(",") if s.strip()]
+    if bad := [s for s in parts if s not in PARTS]:
+        p.error(f"unknown part(s) {bad}; choose from {list(PARTS)}")
+    if a.batches:
+        batches = tuple(int(s) for s in a.batches.split(",") if s.strip())
+    elif a.quick:
+        batches = (1, 4)
+    else:
+        batches = DEFAULT_BATCHES + (GPU_EXTRA_BATCHES if jax.default_backend() == "gpu" else ())
+    if not batches or min(batches) < 1:
+        p.error("--batches must be positive integers")
+    # A benchmark without compilation measures nothing useful (and un-jitted MJX takes seconds
+    # per step), so JAX_DISABLE_JIT=1, which the test suite sets, is overridden here.
+    jax.config.update("jax_disable_jit", False)
+    cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
+                      seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
+                      exp=a.exp, iters=a.iters or (1 if a.quick else 0), seed=a.seed)
+    result = run(cfg, parts, a.timeout)
+    print(report(result))
+    with open(a.out, "w") as f:
+        json.dump(result, f, indent=2)
+    print(f"\nwrote {a.out}")
+    return 1 if result["errors"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
