@@ -5,6 +5,9 @@ ARGS ?=
 RUN ?=
 BENCH_ARGS ?=
 STAMP := .venv/.installed
+# Motion clips: $JAXMOTION_DATA if set, else ./data, else the shared clips beside the repo.
+JAXMOTION_DATA ?= $(if $(wildcard data),data,$(if $(wildcard ../shared/motions),$(abspath ../shared/motions),data))
+export JAXMOTION_DATA
 
 .PHONY: setup test train eval bench clean
 
