@@ -50,6 +50,40 @@ def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
     return experiment, cfg, learner, ts
 
 
+def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool):
+    """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape."""
+    cache = learner.__dict__.setdefault("_eval_rollout_cache", {})
+    sig = (episodes, steps, deterministic)
+    if sig in cache:
+        return cache[sig]
+    env = learner.env
+
+    @jax.jit
+    def run(ts, key):
+        k_reset, k_act = jax.random.split(key)
+        state, obs = jax.vmap(env.reset)(jax.random.split(k_reset, episodes))
+
+        def step(carry, k):
+            state, obs, alive = carry
+            action, _ = learner.act(ts, obs, None if deterministic else k)
+            state, out = jax.vmap(env.step)(state, action)
+            done = out.terminated | out.truncated
+            # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
+            rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], state.data.qpos, alive & ~done,
+                   alive & out.terminated)
+            return (state, out.obs, alive & ~done), rec
+
+        alive0 = jnp.ones((episodes,), bool)
+        _, (pos, quat, qpos, alive, fell) = jax.lax.scan(
+            step, (state, obs, alive0), jax.random.split(k_act, steps))
+        first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
+        return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
+                first(state.data.qpos, qpos), first(alive0, alive), fell.any(0))
+
+    cache[sig] = run
+    return run
+
+
 def rollout(learner: Learner, ts: TrainState, episodes: int, steps: int, seed: int = 0,
             deterministic: bool = True) -> dict[str, np.ndarray]:
     """Runs ``episodes`` environments for ``steps`` control steps with the policy's mean action.
@@ -58,36 +92,8 @@ def rollout(learner: Learner, ts: TrainState, episodes: int, steps: int, seed: i
     initial state first), ``qpos`` [T+1, E, nq] (MuJoCo generalised positions, for rendering),
     ``alive`` [T+1, E] (the episode has not ended yet), ``fell`` [E].
     """
-    env = learner.env
-
-    @jax.jit
-    def run(key):
-        k_reset, k_act = jax.random.split(key)
-        state, obs = jax.vmap(env.reset)(jax.random.split(k_reset, episodes))
-
-        def step(carry, k):
-            state, obs, alive = carry
-            action, _ = learner.act(ts, obs, None if deterministic else k)
-            state, out = jax.vmap(env.step)(state, action)
-            pos, quat = out_frame(state, out)
-            done = out.terminated | out.truncated
-            # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
-            rec = (pos, quat, state.data.qpos, alive & ~done, alive & out.terminated)
-            return (state, out.obs, alive & ~done), rec
-
-        def out_frame(state, out):
-            return state.hist.pos[:, -1], state.hist.quat[:, -1]
-
-        alive0 = jnp.ones((episodes,), bool)
-        (_, _, _), (pos, quat, qpos, alive, fell) = jax.lax.scan(
-            step, (state, obs, alive0), jax.random.split(k_act, steps))
-        pos = jnp.concatenate([state.hist.pos[None, :, -1], pos], 0)
-        quat = jnp.concatenate([state.hist.quat[None, :, -1], quat], 0)
-        qpos = jnp.concatenate([state.data.qpos[None], qpos], 0)
-        alive = jnp.concatenate([alive0[None], alive], 0)
-        return pos, quat, qpos, alive, fell.any(0)
-
-    pos, quat, qpos, alive, fell = jax.device_get(run(jax.random.PRNGKey(seed)))
+    run = _rollout_fn(learner, episodes, steps, deterministic)
+    pos, quat, qpos, alive, fell = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
     return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell}
 
 
@@ -154,6 +160,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=None, help="episodes (default: the config's eval_episodes)")
     p.add_argument("--json", type=Path, default=None, help="also write the metrics here")
     p.add_argument("--seed", type=int, default=0)
+    # --- visualisation flags (jaxmotion.render / replay_html / plot) ---
+    p.add_argument("--video", type=Path, default=None,
+                   help="render rollout episode 0 with the first group's reference as a ghost (.mp4, or .gif)")
+    p.add_argument("--html", type=Path, default=None,
+                   help="write rollout episode 0 as a self-contained 3D replay page (.html)")
+    p.add_argument("--no-plots", action="store_true",
+                   help="do not write learning-curve PNGs (plot_*.png) into the run folder")
+    # --- end visualisation flags ---
     args = p.parse_args(argv)
     try:
         experiment, cfg, learner, ts = load_run(args.run)
@@ -169,6 +183,23 @@ def main(argv: list[str] | None = None) -> int:
               f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)")
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
+    # --- visualisation (jaxmotion.render / replay_html / plot) ---
+    if args.video or args.html:
+        # The same rollout as evaluate()'s (same episodes, steps and seed): its episode 0.
+        ro = rollout(learner, ts, res["episodes"], learner.cfg.env.episode_steps, args.seed)
+        if args.video:
+            from jaxmotion.render import render_rollout
+            print(f"video: {render_rollout(learner, ro, args.video)}")
+        if args.html:
+            from jaxmotion.replay_html import write_rollout_html
+            print(f"html: {write_rollout_html(learner, ro, args.html)}")
+    if not args.no_plots:
+        from jaxmotion.plot import plot_run
+        try:
+            print(f"plots: {len(plot_run(args.run))} PNGs in {args.run}")
+        except FileNotFoundError as e:
+            print(f"plots skipped: {e}", file=sys.stderr)
+    # --- end visualisation ---
     return 0
 
 

@@ -74,6 +74,12 @@ class PPOConfig:
     """True: clip each ω_k Ā_k term separately (the authors' code) instead of Eq. 9."""
     terminate_reward: float = -1.0
     """Reward of every objective on a terminating step (the authors' code uses -1)."""
+    absorbing_termination: bool = True
+    """True: a fall is an absorbing state that keeps paying ``terminate_reward`` (its value is
+    ``terminate_reward / (1 - gamma)``), so falling is never better than staying up. False: the
+    authors' code (value 0 after the fall), which, with clipped discriminator rewards that sit
+    near -1 early in training, makes an early fall the better deal; measured here, a policy
+    trained that way learned to fall sooner."""
     obs_clip: float = 5.0
 
 
@@ -244,24 +250,33 @@ class Learner:
             body, (params, opt_state), (mb(pol), mb(ref), jax.random.split(k_gp, nmb)))
         return params, opt_state, norm, jax.tree.map(jnp.mean, metrics)
 
+    def group_rewards(self, ts: TrainState, traj: Transition) -> jax.Array:
+        """Discriminator reward of every group for a rollout, without updating: [T, B, G]."""
+        T, B = traj.terminated.shape
+        out = []
+        for g, net in enumerate(self.discs):
+            x = N.normalize(ts.disc_norm[g], traj.disc_obs[g].reshape(T * B, -1), None)
+            out.append(D.disc_reward(net.apply(ts.disc_params[g], x)).reshape(T, B))
+        return jnp.stack(out, -1)
+
     def disc_step(self, ts: TrainState, traj: Transition):
         """Updates every ensemble on this rollout vs fresh reference windows; returns rewards [T,B,G]."""
         T, B = traj.terminated.shape
         rng, k_ref, k_upd = jax.random.split(ts.rng, 3)
         refs = self.env.ref_disc_obs(k_ref, T * B)
-        new_p, new_o, new_n, rewards, metrics = [], [], [], [], {}
+        new_p, new_o, new_n, metrics = [], [], [], {}
         for g, (net, key) in enumerate(zip(self.discs, jax.random.split(k_upd, len(self.discs)))):
             pol = traj.disc_obs[g].reshape(T * B, -1)
             p, o, n, m = self._update_disc(net, ts.disc_params[g], ts.disc_opt_state[g], ts.disc_norm[g],
                                            pol, refs[g], key)
-            logits = net.apply(p, N.normalize(n, pol, None))
-            rewards.append(D.disc_reward(logits).reshape(T, B))
             new_p.append(p); new_o.append(o); new_n.append(n)
-            name = self.cfg.env.groups[g].name
-            metrics.update({f"disc/{name}/{k}": v for k, v in m.items()})
-            metrics[f"reward/{name}"] = jnp.mean(rewards[-1])
+            metrics.update({f"disc/{self.cfg.env.groups[g].name}/{k}": v for k, v in m.items()})
         ts = ts.replace(disc_params=tuple(new_p), disc_opt_state=tuple(new_o), disc_norm=tuple(new_n), rng=rng)
-        return ts, jnp.stack(rewards, -1), metrics
+        # Rewards come from the updated discriminators, on the same windows (as the authors' code).
+        rewards = self.group_rewards(ts, traj)
+        for g, gc in enumerate(self.cfg.env.groups):
+            metrics[f"reward/{gc.name}"] = jnp.mean(rewards[..., g])
+        return ts, rewards, metrics
 
     # ---- PPO -----------------------------------------------------------------------------
     def values(self, ts: TrainState, obs: jax.Array) -> jax.Array:
@@ -277,8 +292,13 @@ class Learner:
         rewards = jnp.where(traj.terminated[..., None], pc.terminate_reward, rewards)
         values = self.values(ts, traj.obs)
         next_values = self.values(ts, traj.final_obs)
-        adv, returns = G.compute_gae(rewards, values, next_values, traj.terminated.astype(jnp.float32),
-                                     traj.truncated.astype(jnp.float32), pc.gamma, pc.lam)
+        term = traj.terminated.astype(jnp.float32)
+        trunc = traj.truncated.astype(jnp.float32)
+        if pc.absorbing_termination:
+            # Bootstrap a fall from the absorbing state's value and cut the trace there.
+            next_values = jnp.where(traj.terminated[..., None], pc.terminate_reward / (1.0 - pc.gamma), next_values)
+            term, trunc = jnp.zeros_like(term), jnp.maximum(term, trunc)
+        adv, returns = G.compute_gae(rewards, values, next_values, term, trunc, pc.gamma, pc.lam)
         metrics = {}
         if pc.popart:
             new_pa = PA.popart_update(ts.popart, returns, pc.popart_beta)

@@ -1,0 +1,407 @@
+"""Offscreen rendering of rollouts: the simulated character coloured by body group, with the
+reference motion overlaid as a translucent ghost, written out as MP4 (or GIF).
+
+Headless OpenGL: ``gl_backend()`` picks ``MUJOCO_GL`` itself. A value the user set is respected;
+otherwise EGL is tried, then OSMesa, each in a throw-away subprocess (a backend that fails can
+leave PyOpenGL bound to the wrong platform, so it is never tried in this process), and the first
+that renders is installed as the GL context class of ``mujoco.Renderer``. MuJoCo picks its
+context class when ``mujoco`` is first imported, which in jaxmotion happens long before anything
+renders, so the class is swapped in place rather than only exporting the variable.
+
+The scene is one MJCF with two copies of the character: the simulated one (names as in
+``physics.character.build_mjcf``) and a ghost (names prefixed ``ghost_``) whose geoms are
+translucent and collide with nothing. Only kinematics is computed per frame (no physics step),
+so the ghost never interacts with anything.
+
+``render_rollout`` is what ``python -m jaxmotion.eval <run> --video FILE`` calls: deterministic
+rollout episode 0, with the ghost replaying the *first* body group's reference clip (for a
+composite run, e.g. upper = chest_open + lower = squat, the ghost shows the upper group's clip
+as a whole-body motion; the other groups' clips are not drawn). The ghost's qpos comes from
+MotionLib ``sample`` + ``qpos_qvel`` of that group's first clip at the control rate, repeated to
+the episode length as ``eval.reference_sequence`` does, and moved rigidly (xy + yaw) so that its
+first root heading frame coincides with the simulation's first one, as ``eval.world_aligned``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import subprocess
+import sys
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Iterable, Iterator, Mapping, Sequence
+
+import numpy as np
+
+GHOST_PREFIX = "ghost_"
+GHOST_RGBA = (0.85, 0.9, 1.0, 0.3)
+DEFAULT_LINK_RGBA = (0.7, 0.7, 0.7, 1.0)
+# One colour per body group, in the order of cfg.env.groups (tab10-like, opaque).
+GROUP_PALETTE = (
+    (0.90, 0.33, 0.20, 1.0),  # orange-red
+    (0.20, 0.50, 0.85, 1.0),  # blue
+    (0.30, 0.70, 0.30, 1.0),  # green
+    (0.75, 0.45, 0.85, 1.0),  # purple
+    (0.95, 0.75, 0.20, 1.0),  # yellow
+    (0.40, 0.80, 0.80, 1.0),  # teal
+)
+
+_PROBE = r"""
+import mujoco, numpy as np
+m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><light pos="0 0 3"/>'
+                                   '<geom type="sphere" size=".5"/></worldbody></mujoco>')
+d = mujoco.MjData(m)
+mujoco.mj_forward(m, d)
+with mujoco.Renderer(m, 32, 32) as r:
+    r.update_scene(d)
+    img = r.render()
+assert img.shape == (32, 32, 3) and img.max() > 0, "blank image"
+print("ok")
+"""
+
+
+@contextlib.contextmanager
+def quiet_fork():
+    """Silences JAX's 'os.fork() was called' warning around fork+exec of a helper program (the
+    GL probe, ffmpeg, Chromium): the child runs no Python and no JAX, it execs at once."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"os\.fork\(\) was called", category=RuntimeWarning)
+        yield
+
+
+def _probe(backend: str, timeout: float = 60.0) -> bool:
+    """Whether ``MUJOCO_GL=backend`` renders a non-blank image, tried in a subprocess."""
+    env = dict(os.environ, MUJOCO_GL=backend)
+    env.pop("PYOPENGL_PLATFORM", None)
+    try:
+        with quiet_fork():
+            r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True,
+                               text=True, timeout=timeout)
+    except (subprocess.TimeoutExpired, OSError):
+        return False
+    return r.returncode == 0 and "ok" in r.stdout
+
+
+def _install(backend: str) -> None:
+    """Makes ``mujoco.Renderer`` create ``backend`` GL contexts from now on."""
+    os.environ["MUJOCO_GL"] = backend
+    if backend in ("egl", "osmesa"):
+        os.environ.setdefault("PYOPENGL_PLATFORM", backend)
+    from mujoco.rendering.classic import gl_context  # mujoco>=3.3 layout
+    if backend == "egl":
+        from mujoco.egl import GLContext
+    elif backend == "osmesa":
+        from mujoco.osmesa import GLContext
+    else:
+        from mujoco.glfw import GLContext
+    gl_context.GLContext = GLContext
+
+
+@functools.lru_cache(maxsize=None)
+def gl_backend() -> str | None:
+    """The headless GL backend in use ('egl', 'osmesa', or the user's ``MUJOCO_GL``), or None.
+
+    None means no backend could render (install ``libegl1 libegl-mesa0 libgl1-mesa-dri`` for
+    EGL, or ``libosmesa6`` for OSMesa). The choice is made once per process.
+    """
+    user = os.environ.get("MUJOCO_GL", "").strip().lower()
+    candidates = [user] if user else ["egl", "osmesa"]
+    for b in candidates:
+        if _probe(b):
+            _install(b)
+            return b
+    return None
+
+
+def require_gl() -> str:
+    """``gl_backend()`` or a RuntimeError saying what to install."""
+    b = gl_backend()
+    if b is None:
+        tried = os.environ.get("MUJOCO_GL") or "egl, osmesa"
+        raise RuntimeError(
+            f"no headless OpenGL backend works (tried MUJOCO_GL={tried}); install EGL "
+            "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) or OSMesa (libosmesa6)")
+    return b
+
+
+# ---- the scene ---------------------------------------------------------------------------------
+def scene_mjcf(sword_shield: bool = False, ghost: bool = True) -> str:
+    """MJCF of the character over the floor, plus (``ghost``) a translucent, collision-free copy
+    whose bodies, joints and geoms are named ``ghost_<name>``; its qpos follows the character's."""
+    from jaxmotion.physics.character import build_mjcf
+    root = ET.fromstring(build_mjcf(sword_shield))
+    wb = root.find("worldbody")
+    vis = root.find("visual")
+    if vis is not None:  # a brighter headlight and cheaper shadows; keep the offscreen buffer
+        ET.SubElement(vis, "quality", shadowsize="2048")
+        ET.SubElement(vis, "headlight", ambient=".35 .35 .35", diffuse=".5 .5 .5", specular=".1 .1 .1")
+    asset = root.find("asset")
+    if asset is not None:  # a dusk-blue sky instead of black
+        ET.SubElement(asset, "texture", type="skybox", builtin="gradient", rgb1=".35 .45 .55",
+                      rgb2=".05 .07 .1", width="64", height="512")
+    if ghost:
+        body = next(b for b in wb if b.tag == "body")
+        g = ET.fromstring(ET.tostring(body))
+        for el in g.iter():
+            if "name" in el.attrib:
+                el.set("name", GHOST_PREFIX + el.get("name"))
+            if el.tag == "geom":
+                el.set("contype", "0")
+                el.set("conaffinity", "0")
+                el.set("rgba", " ".join(f"{x:g}" for x in GHOST_RGBA))
+                el.set("group", "1")
+                el.set("density", "1")  # irrelevant (never stepped), keeps the model light
+            if el.tag == "joint":
+                el.attrib.pop("armature", None)
+        wb.append(g)
+    return ET.tostring(root, encoding="unicode")
+
+
+def group_colors(link_groups: Sequence[Sequence[int]],
+                 palette: Sequence[Sequence[float]] = GROUP_PALETTE) -> dict[int, tuple[float, ...]]:
+    """link index -> RGBA, group ``i`` in ``palette[i]``; a link in two groups keeps the first."""
+    out: dict[int, tuple[float, ...]] = {}
+    for i, links in enumerate(link_groups):
+        for l in np.asarray(links).reshape(-1):
+            out.setdefault(int(l), tuple(float(x) for x in palette[i % len(palette)]))
+    return out
+
+
+def learner_group_colors(learner) -> dict[int, tuple[float, ...]]:
+    """Colours of a learner's body groups (``learner.env.group_idx``), in config order."""
+    return group_colors([links for links, _ in learner.env.group_idx])
+
+
+def _sword_shield_from_nq(nq: int) -> bool:
+    from jaxmotion.physics.character import character
+    for ss in (False, True):
+        if 7 + character(ss).num_dof == nq:
+            return ss
+    raise ValueError(f"qpos has {nq} entries; the characters have "
+                     f"{7 + character(False).num_dof} or {7 + character(True).num_dof}")
+
+
+class SceneRenderer:
+    """A reusable renderer of the two-character scene (keeps one GL context)."""
+
+    def __init__(self, sword_shield: bool = False, width: int = 640, height: int = 480,
+                 group_colors: Mapping[int, Sequence[float]] | None = None,
+                 ghost_rgba: Sequence[float] = GHOST_RGBA):
+        import mujoco
+        require_gl()
+        self.mujoco = mujoco
+        self.model = mujoco.MjModel.from_xml_string(scene_mjcf(sword_shield, ghost=True))
+        m = self.model
+        m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), width)
+        m.vis.global_.offheight = max(int(m.vis.global_.offheight), height)
+        m.vis.map.znear = 0.02
+        self.data = mujoco.MjData(m)
+        from jaxmotion.physics.character import character
+        self.nb = character(sword_shield).num_bodies
+        self.nq = 7 + character(sword_shield).num_dof
+        assert m.nq == 2 * self.nq and m.nbody == 1 + 2 * self.nb, "unexpected scene layout"
+        colors = dict(group_colors or {})
+        body = m.geom_bodyid
+        for gi in range(m.ngeom):
+            b = int(body[gi])
+            if 1 <= b <= self.nb:
+                m.geom_rgba[gi] = colors.get(b - 1, DEFAULT_LINK_RGBA)
+            elif b > self.nb:
+                m.geom_rgba[gi] = ghost_rgba
+        self._ghost_geoms = (body > self.nb)
+        self.renderer = mujoco.Renderer(m, height=height, width=width)
+        self.camera = mujoco.MjvCamera()
+        self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        self.camera.distance = 3.5
+        self.camera.azimuth = 135.0
+        self.camera.elevation = -15.0
+        self.option = mujoco.MjvOption()
+        self.width, self.height = width, height
+
+    def render(self, qpos: np.ndarray, ghost_qpos: np.ndarray | None, lookat: np.ndarray) -> np.ndarray:
+        """One RGB frame [H, W, 3] uint8; ``ghost_qpos`` None hides the ghost."""
+        mj = self.mujoco
+        self.data.qpos[: self.nq] = qpos
+        if ghost_qpos is None:
+            self.data.qpos[self.nq:] = qpos
+            self.data.qpos[self.nq + 2] = -100.0  # far below the floor: invisible
+            self.option.geomgroup[1] = 0
+        else:
+            self.data.qpos[self.nq:] = ghost_qpos
+            self.option.geomgroup[1] = 1
+        mj.mj_kinematics(self.model, self.data)
+        mj.mj_comPos(self.model, self.data)  # the light tracks the CoM
+        self.camera.lookat[:] = lookat
+        self.renderer.update_scene(self.data, camera=self.camera, scene_option=self.option)
+        return self.renderer.render().copy()
+
+    def close(self) -> None:
+        self.renderer.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def follow_lookat(root_pos: np.ndarray, smoothing: float = 0.9, height: float = 0.9) -> np.ndarray:
+    """[T, 3] camera targets following the root's xy (exponentially smoothed) at a fixed height."""
+    root_pos = np.asarray(root_pos, np.float64)
+    out = np.empty_like(root_pos)
+    cur = root_pos[0, :2].copy()
+    for t in range(len(root_pos)):
+        cur = smoothing * cur + (1 - smoothing) * root_pos[t, :2] if t else cur
+        out[t, :2] = cur
+        out[t, 2] = height
+    return out
+
+
+def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
+                group_colors: Mapping[int, Sequence[float]] | None = None,
+                width: int = 640, height: int = 480, *, camera_distance: float = 3.5,
+                camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
+                ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True
+                ) -> Iterator[np.ndarray]:
+    """``render_frames`` one frame at a time (uint8 [H, W, 3] each), for long videos."""
+    qpos_seq = np.asarray(qpos_seq, np.float64)
+    if qpos_seq.ndim != 2:
+        raise ValueError(f"qpos_seq must be [T, nq], got shape {qpos_seq.shape}")
+    if ref_qpos_seq is not None:
+        ref_qpos_seq = np.asarray(ref_qpos_seq, np.float64)
+        if ref_qpos_seq.shape != qpos_seq.shape:
+            raise ValueError(f"ref_qpos_seq {ref_qpos_seq.shape} must match qpos_seq {qpos_seq.shape}")
+    ss = _sword_shield_from_nq(qpos_seq.shape[1])
+    lookat = follow_lookat(qpos_seq[:, :3])
+    from tqdm.auto import tqdm
+    with SceneRenderer(ss, width, height, group_colors, ghost_rgba) as sr:
+        sr.camera.distance, sr.camera.azimuth, sr.camera.elevation = (
+            camera_distance, camera_azimuth, camera_elevation)
+        for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress,
+                      leave=False):
+            yield sr.render(qpos_seq[t], None if ref_qpos_seq is None else ref_qpos_seq[t], lookat[t])
+
+
+def render_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
+                  group_colors: Mapping[int, Sequence[float]] | None = None,
+                  width: int = 640, height: int = 480, *, camera_distance: float = 3.5,
+                  camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
+                  ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True) -> np.ndarray:
+    """Renders a qpos sequence, optionally with the reference as a ghost.
+
+    Args:
+        qpos_seq: [T, nq] MuJoCo generalised positions of the simulated character (15- or
+            17-body character, told apart by nq).
+        ref_qpos_seq: None, or [T, nq] of the reference (already placed where it should appear).
+        group_colors: link index -> RGBA for the simulated character's geoms (others grey).
+        width, height: image size in pixels.
+        camera_distance, camera_azimuth, camera_elevation: free camera (m, degrees, MuJoCo's
+            convention: azimuth 135 / elevation -15 looks from the front-right, slightly above)
+            whose target follows the simulated root's xy (smoothed) at 0.9 m height.
+        ghost_rgba: colour of the ghost (alpha ~0.3).
+        progress: show a tqdm bar.
+
+    Returns:
+        uint8 [T, H, W, 3].
+    """
+    frames = np.empty((len(qpos_seq), height, width, 3), np.uint8)
+    for t, f in enumerate(iter_frames(qpos_seq, ref_qpos_seq, group_colors, width, height,
+                                      camera_distance=camera_distance, camera_azimuth=camera_azimuth,
+                                      camera_elevation=camera_elevation, ghost_rgba=ghost_rgba,
+                                      progress=progress)):
+        frames[t] = f
+    return frames
+
+
+def write_video(frames: np.ndarray | Iterable[np.ndarray], path: str | os.PathLike,
+                fps: float = 30.0) -> Path:
+    """Writes uint8 frames ([T, H, W, 3], or an iterable of [H, W, 3], consumed as it goes) as
+    MP4 (H.264 via imageio-ffmpeg's bundled ffmpeg) or, for a ``.gif`` path, as GIF.
+
+    Odd frame sizes are padded to even for H.264. Returns the path.
+    """
+    import imageio.v2 as imageio
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".gif":
+        imageio.mimsave(path, [np.asarray(f, np.uint8) for f in frames], duration=1000.0 / fps, loop=0)
+        return path
+    n = 0
+    with quiet_fork(), imageio.get_writer(path, fps=fps, codec="libx264", quality=7, pixelformat="yuv420p",
+                                          macro_block_size=1, ffmpeg_log_level="error") as wr:
+        for f in frames:
+            f = np.asarray(f, np.uint8)
+            h, w = f.shape[:2]
+            if h % 2 or w % 2:
+                f = np.pad(f, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+            wr.append_data(f)
+            n += 1
+    if n == 0:
+        raise ValueError(f"{path}: no frames to write")
+    return path
+
+
+# ---- the reference ghost -----------------------------------------------------------------------
+def align_to_start(ref_root_pos: np.ndarray, ref_root_quat: np.ndarray, sim_root_pos0: np.ndarray,
+                   sim_root_quat0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid xy + yaw motion taking the reference's first heading frame onto the simulation's
+    first one (as ``eval.world_aligned``), as (quaternion [4], translation function inputs).
+
+    Returns:
+        (q_align [4] wxyz, offset [3]) such that ``p' = rotate(q_align, p - o_ref) + o_sim`` with
+        the offset = o_sim - rotate(q_align, o_ref).
+    """
+    from jaxmotion.envs import observations as O
+    from jaxmotion.motion import rotations as R
+    f32 = lambda x: np.asarray(x, np.float32)  # heading_frame is jnp (float32 without x64)
+    o_ref, inv_ref = (np.asarray(x, np.float64) for x in O.heading_frame(
+        f32(ref_root_pos[0]), f32(ref_root_quat[0])))
+    o_sim, inv_sim = (np.asarray(x, np.float64) for x in O.heading_frame(
+        f32(sim_root_pos0), f32(sim_root_quat0)))
+    q = np.asarray(R.quat_mul(R.quat_conj(inv_sim), inv_ref))
+    return q, o_sim - np.asarray(R.quat_rotate(q, o_ref))
+
+
+def align_pose(q_align: np.ndarray, offset: np.ndarray, pos: np.ndarray,
+               quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Applies ``align_to_start``'s motion to positions [..., 3] and orientations [..., 4]."""
+    from jaxmotion.motion import rotations as R
+    pos, quat = np.asarray(pos, np.float64), np.asarray(quat, np.float64)
+    qb = np.broadcast_to(q_align, pos.shape[:-1] + (4,))
+    p = np.asarray(R.quat_rotate(qb, pos)) + offset
+    q = np.asarray(R.quat_mul(np.broadcast_to(q_align, quat.shape), quat))
+    return p, q
+
+
+def reference_qpos(learner, group: int, num_frames: int) -> np.ndarray:
+    """[num_frames, nq] qpos of the group's first clip at the control rate, repeated (as
+    ``eval.reference_sequence``), in the clip's own world frame."""
+    import jax.numpy as jnp
+    from jaxmotion.motion.motionlib import qpos_qvel, sample
+    lib = learner.env.motion_libs[group]
+    dur = float(lib.clip_duration[0])
+    t = (np.arange(num_frames) * learner.env.dt) % max(dur, 1e-6)
+    ms = sample(lib, jnp.zeros(num_frames, jnp.int32), jnp.asarray(t, jnp.float32))
+    return np.asarray(qpos_qvel(ms)[0], np.float64)
+
+
+def aligned_reference_qpos(ref_qpos: np.ndarray, sim_qpos0: np.ndarray) -> np.ndarray:
+    """Reference qpos [T, nq] moved rigidly (xy + yaw) onto the simulation's first root frame."""
+    q, off = align_to_start(ref_qpos[:, :3], ref_qpos[:, 3:7], sim_qpos0[:3], sim_qpos0[3:7])
+    out = np.array(ref_qpos, np.float64)
+    out[:, :3], out[:, 3:7] = align_pose(q, off, ref_qpos[:, :3], ref_qpos[:, 3:7])
+    return out
+
+
+def render_rollout(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLike, episode: int = 0,
+                   group: int = 0, width: int = 640, height: int = 480, fps: float | None = None) -> Path:
+    """Renders one episode of ``eval.rollout``'s output (alive frames only) with the ghost of
+    ``group``'s reference clip (see the module docstring) and writes it to ``path``."""
+    n = int(np.asarray(ro["alive"])[:, episode].sum())
+    qpos = np.asarray(ro["qpos"])[:n, episode].astype(np.float64)
+    ref = aligned_reference_qpos(reference_qpos(learner, group, n), qpos[0])
+    frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height)
+    return write_video(frames, path, fps or 1.0 / learner.env.dt)

@@ -1,0 +1,593 @@
+"""A self-contained HTML replay of a rollout: three.js (inlined), the character's capsules,
+spheres and boxes moved by the recorded link poses, the reference as a translucent ghost.
+
+One file, no network at view time: ``jaxmotion/assets/three.min.js`` (three.js r160, MIT, the
+classic non-module build; its licence header is kept and ``three.LICENSE`` sits next to it) is
+inlined into the page together with the poses (float32, base64). The page has play/pause (space),
+a frame slider, a speed selector, a ghost on/off checkbox, a follow-the-character checkbox, a
+floor grid (1 m cells) and a small orbit camera (left drag: rotate, right drag or shift+drag:
+pan, wheel: zoom). The world is MuJoCo's: z up, metres, quaternions wxyz.
+
+``python -m jaxmotion.eval <run> --html FILE`` writes deterministic rollout episode 0 with the
+first body group's reference clip as the ghost (see ``render``'s module docstring).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+ASSETS = Path(__file__).with_name("assets")
+THREE_JS = ASSETS / "three.min.js"
+
+_GEOM_TYPES = {2: "sphere", 3: "capsule", 5: "cylinder", 6: "box"}  # mjtGeom values
+
+
+def character_geoms(sword_shield: bool = False,
+                    group_colors: Mapping[int, Sequence[float]] | None = None,
+                    default_rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> list[dict]:
+    """The character's geoms as plain dicts for ``write_html``.
+
+    Each dict: ``body`` (link index, 0 = root), ``type`` (sphere | capsule | cylinder | box),
+    ``size`` (MuJoCo's: radius / radius, half-length / half-sizes), ``pos`` [3] and ``quat`` [4]
+    (wxyz) relative to the body frame, ``rgba`` (from ``group_colors`` by link, else
+    ``default_rgba``). Taken from the compiled ``mujoco.MjModel`` of ``build_mjcf``, so
+    ``fromto`` capsules come out as centre + orientation.
+    """
+    import mujoco
+    from jaxmotion.physics.character import build_mjcf
+    m = mujoco.MjModel.from_xml_string(build_mjcf(sword_shield, floor=False))
+    colors = dict(group_colors or {})
+    out = []
+    for g in range(m.ngeom):
+        b = int(m.geom_bodyid[g])
+        typ = _GEOM_TYPES.get(int(m.geom_type[g]))
+        if b == 0 or typ is None:
+            continue
+        out.append({"body": b - 1, "type": typ, "size": [round(float(x), 6) for x in m.geom_size[g]],
+                    "pos": [round(float(x), 6) for x in m.geom_pos[g]],
+                    "quat": [round(float(x), 6) for x in m.geom_quat[g]],
+                    "rgba": [float(x) for x in colors.get(b - 1, default_rgba)]})
+    return out
+
+
+def _b64(a: np.ndarray) -> str:
+    return base64.b64encode(np.ascontiguousarray(a, "<f4").tobytes()).decode("ascii")
+
+
+def _check(name: str, a, shape_tail: tuple[int, ...], T: int | None) -> np.ndarray:
+    a = np.asarray(a, np.float32)
+    if a.ndim != 3 or a.shape[2:] != shape_tail[1:] or a.shape[1] != shape_tail[0]:
+        raise ValueError(f"{name} must be [T, {shape_tail[0]}, {shape_tail[1]}], got {a.shape}")
+    if T is not None and a.shape[0] != T:
+        raise ValueError(f"{name} has {a.shape[0]} frames, the simulation {T}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} contains NaN or inf")
+    return a
+
+
+def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequence[int],
+               sim_pos: np.ndarray, sim_quat: np.ndarray, ref_pos: np.ndarray | None,
+               ref_quat: np.ndarray | None, fps: float, geoms: Sequence[Mapping],
+               *, title: str = "jaxmotion replay",
+               legend: Mapping[str, Sequence[float]] | None = None) -> Path:
+    """Writes the replay page.
+
+    Args:
+        path: output ``.html`` file.
+        body_names, parents: the character's links (``character().body_names``/``parents``);
+            drawn as thin bones between each link and its parent as well.
+        sim_pos, sim_quat: [T, nb, 3] and [T, nb, 4] (wxyz) world-frame link poses.
+        ref_pos, ref_quat: the same for the reference ghost, or None.
+        fps: frames per second of the recording (the control rate).
+        geoms: ``character_geoms(...)`` (or any list of such dicts).
+        title: page title and heading.
+        legend: optional name -> RGBA swatches (e.g. body group colours).
+
+    Returns:
+        The path.
+    """
+    nb = len(body_names)
+    if len(parents) != nb:
+        raise ValueError(f"{len(parents)} parents for {nb} bodies")
+    sp = _check("sim_pos", sim_pos, (nb, 3), None)
+    T = sp.shape[0]
+    sq = _check("sim_quat", sim_quat, (nb, 4), T)
+    if (ref_pos is None) != (ref_quat is None):
+        raise ValueError("give both ref_pos and ref_quat, or neither")
+    data = {
+        "title": title, "fps": float(fps), "T": int(T), "nb": nb,
+        "bodyNames": list(body_names), "parents": [int(p) for p in parents],
+        "geoms": [dict(g) for g in geoms], "legend": {k: list(map(float, v)) for k, v in (legend or {}).items()},
+        "simPos": _b64(sp), "simQuat": _b64(sq), "refPos": None, "refQuat": None,
+    }
+    if ref_pos is not None:
+        data["refPos"] = _b64(_check("ref_pos", ref_pos, (nb, 3), T))
+        data["refQuat"] = _b64(_check("ref_quat", ref_quat, (nb, 4), T))
+    three = THREE_JS.read_text(encoding="utf-8")
+    if "</script" in three.lower():
+        raise RuntimeError(f"{THREE_JS} contains '</script' and cannot be inlined")
+    payload = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    page = (_TEMPLATE.replace("@@TITLE@@", html.escape(title))
+            .replace("@@DATA@@", payload)
+            .replace("@@APP@@", _APP_JS)
+            .replace("@@THREE@@", three))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(page, encoding="utf-8")
+    return path
+
+
+_TEMPLATE = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<title>@@TITLE@@</title>
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<style>
+  html, body { margin: 0; height: 100%; overflow: hidden; background: #1d2430;
+               font: 13px system-ui, sans-serif; color: #dde; }
+  #view { position: absolute; inset: 0; }
+  #ui { position: absolute; left: 0; right: 0; bottom: 0; padding: 6px 10px;
+        background: rgba(10, 14, 20, 0.72); display: flex; gap: 10px; align-items: center; }
+  #ui input[type=range] { flex: 1; }
+  #ui button { min-width: 64px; }
+  #title { position: absolute; left: 10px; top: 8px; font-weight: 600; }
+  #legend { position: absolute; right: 10px; top: 8px; }
+  #legend span.sw { display: inline-block; width: 10px; height: 10px; margin: 0 4px 0 10px;
+                    border-radius: 2px; }
+  #msg { position: absolute; left: 10px; top: 30px; color: #f99; }
+  #help { position: absolute; left: 10px; bottom: 40px; opacity: 0.6; font-size: 11px; }
+</style>
+</head>
+<body>
+<div id="view"></div>
+<div id="title"></div>
+<div id="legend"></div>
+<div id="msg"></div>
+<div id="help">drag: rotate &middot; right-drag / shift-drag: pan &middot; wheel: zoom &middot; space: play/pause</div>
+<div id="ui">
+  <button id="play">Pause</button>
+  <input id="slider" type="range" min="0" max="0" value="0" step="1">
+  <span id="label">0</span>
+  <label>speed <select id="speed">
+    <option value="0.1">0.1&times;</option><option value="0.25">0.25&times;</option>
+    <option value="0.5">0.5&times;</option><option value="1" selected>1&times;</option>
+    <option value="2">2&times;</option></select></label>
+  <label><input id="ghost" type="checkbox" checked> reference ghost</label>
+  <label><input id="follow" type="checkbox" checked> follow</label>
+</div>
+<script type="application/json" id="replay-data">@@DATA@@</script>
+<script>
+@@THREE@@
+</script>
+<script>
+@@APP@@
+</script>
+</body>
+</html>
+"""
+
+_APP_JS = r"""
+(function () {
+  "use strict";
+  const D = JSON.parse(document.getElementById("replay-data").textContent);
+  const msg = (s) => { document.getElementById("msg").textContent = s; };
+  document.getElementById("title").textContent = D.title;
+  const leg = document.getElementById("legend");
+  for (const [name, c] of Object.entries(D.legend)) {
+    const sw = document.createElement("span");
+    sw.className = "sw";
+    sw.style.background = `rgb(${c[0] * 255},${c[1] * 255},${c[2] * 255})`;
+    leg.appendChild(sw);
+    leg.appendChild(document.createTextNode(name));
+  }
+  const f32 = (s) => {
+    if (!s) return null;
+    const bin = atob(s), u8 = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) u8[i] = bin.charCodeAt(i);
+    return new Float32Array(u8.buffer);
+  };
+  const simPos = f32(D.simPos), simQuat = f32(D.simQuat);
+  const refPos = f32(D.refPos), refQuat = f32(D.refQuat);
+  const T = D.T, NB = D.nb;
+
+  let renderer;
+  try {
+    renderer = new THREE.WebGLRenderer({antialias: true});
+  } catch (e) {
+    msg("WebGL is not available in this browser: " + e.message);
+    window.__replay = {ready: false, error: String(e)};
+    return;
+  }
+  const view = document.getElementById("view");
+  renderer.setPixelRatio(window.devicePixelRatio || 1);
+  renderer.shadowMap.enabled = true;
+  view.appendChild(renderer.domElement);
+
+  const scene = new THREE.Scene();
+  scene.background = new THREE.Color(0x1d2430);
+  const camera = new THREE.PerspectiveCamera(45, 1, 0.02, 200);
+  camera.up.set(0, 0, 1);  // MuJoCo world: z up
+
+  scene.add(new THREE.HemisphereLight(0xdde6ff, 0x303030, 1.6));
+  const sun = new THREE.DirectionalLight(0xffffff, 2.0);
+  sun.castShadow = true;
+  sun.shadow.mapSize.set(1024, 1024);
+  Object.assign(sun.shadow.camera, {left: -3, right: 3, top: 3, bottom: -3, near: 0.1, far: 20});
+  scene.add(sun, sun.target);
+
+  // Floor: a 200 m plane in the xy plane with a 1 m grid drawn into a repeating texture (a
+  // texture rather than GridHelper lines: software WebGL drops lines that cross the near plane).
+  const cv = document.createElement("canvas");
+  cv.width = cv.height = 256;
+  const cx = cv.getContext("2d");
+  cx.fillStyle = "#2b3546"; cx.fillRect(0, 0, 256, 256);
+  cx.fillStyle = "#323d50"; cx.fillRect(0, 0, 128, 128); cx.fillRect(128, 128, 128, 128);
+  cx.strokeStyle = "#7f93b3"; cx.lineWidth = 4;
+  cx.strokeRect(0, 0, 256, 256); cx.beginPath();
+  cx.moveTo(128, 0); cx.lineTo(128, 256); cx.moveTo(0, 128); cx.lineTo(256, 128); cx.stroke();
+  const tex = new THREE.CanvasTexture(cv);
+  tex.wrapS = tex.wrapT = THREE.RepeatWrapping;
+  tex.repeat.set(100, 100);  // 2 m per texture tile = 1 m cells
+  tex.anisotropy = renderer.capabilities.getMaxAnisotropy();
+  tex.colorSpace = THREE.SRGBColorSpace;
+  const floor = new THREE.Mesh(new THREE.PlaneGeometry(200, 200),
+                               new THREE.MeshStandardMaterial({map: tex, roughness: 1}));
+  floor.receiveShadow = true;
+  scene.add(floor);
+
+  // Characters: one Group per link, its geoms as children in the body frame.
+  const up = new THREE.Vector3(0, 1, 0);
+  function geomMesh(g, material) {
+    let geo;
+    const s = g.size;
+    if (g.type === "sphere") geo = new THREE.SphereGeometry(s[0], 20, 14);
+    else if (g.type === "capsule") geo = new THREE.CapsuleGeometry(s[0], 2 * s[1], 6, 16);
+    else if (g.type === "cylinder") geo = new THREE.CylinderGeometry(s[0], s[0], 2 * s[1], 24);
+    else if (g.type === "box") geo = new THREE.BoxGeometry(2 * s[0], 2 * s[1], 2 * s[2]);
+    else return null;
+    if (g.type === "capsule" || g.type === "cylinder") geo.rotateX(Math.PI / 2);  // y axis -> z
+    const m = new THREE.Mesh(geo, material);
+    m.position.set(g.pos[0], g.pos[1], g.pos[2]);
+    m.quaternion.set(g.quat[1], g.quat[2], g.quat[3], g.quat[0]);
+    return m;
+  }
+  function makeCharacter(ghost) {
+    const root = new THREE.Group();
+    const links = [];
+    for (let b = 0; b < NB; b++) { const l = new THREE.Group(); links.push(l); root.add(l); }
+    for (const g of D.geoms) {
+      const c = ghost ? [0.85, 0.9, 1.0, 0.3] : g.rgba;
+      const mat = new THREE.MeshStandardMaterial({
+        color: new THREE.Color(c[0], c[1], c[2]), roughness: 0.6, metalness: 0.0,
+        transparent: ghost || c[3] < 1, opacity: c[3], depthWrite: !ghost});
+      const m = geomMesh(g, mat);
+      if (!m) continue;
+      m.castShadow = !ghost;
+      links[g.body].add(m);
+    }
+    scene.add(root);
+    return {root, links};
+  }
+  const sim = makeCharacter(false);
+  const ref = refPos ? makeCharacter(true) : null;
+  if (ref) ref.root.renderOrder = 1;
+
+  function pose(ch, P, Q, f) {
+    for (let b = 0; b < NB; b++) {
+      const i3 = (f * NB + b) * 3, i4 = (f * NB + b) * 4;
+      ch.links[b].position.set(P[i3], P[i3 + 1], P[i3 + 2]);
+      ch.links[b].quaternion.set(Q[i4 + 1], Q[i4 + 2], Q[i4 + 3], Q[i4]);
+    }
+  }
+
+  // A small orbit camera around a target, z up.
+  // Initial view as render.py's video: from the front-right, 15 degrees above the horizon.
+  const orbit = {target: new THREE.Vector3(simPos[0], simPos[1], 0.9), dist: 4.0,
+                 az: -Math.PI / 4, el: 0.26};
+  function placeCamera() {
+    const ce = Math.cos(orbit.el);
+    camera.position.set(orbit.target.x + orbit.dist * ce * Math.cos(orbit.az),
+                        orbit.target.y + orbit.dist * ce * Math.sin(orbit.az),
+                        orbit.target.z + orbit.dist * Math.sin(orbit.el));
+    camera.lookAt(orbit.target);
+    sun.position.set(orbit.target.x + 2, orbit.target.y - 1, orbit.target.z + 5);
+    sun.target.position.copy(orbit.target);
+  }
+  let drag = null;
+  const el = renderer.domElement;
+  el.addEventListener("contextmenu", (e) => e.preventDefault());
+  el.addEventListener("pointerdown", (e) => {
+    drag = {x: e.clientX, y: e.clientY, pan: e.button !== 0 || e.shiftKey};
+    el.setPointerCapture(e.pointerId);
+  });
+  el.addEventListener("pointerup", (e) => { drag = null; el.releasePointerCapture(e.pointerId); });
+  el.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
+    drag.x = e.clientX; drag.y = e.clientY;
+    if (drag.pan) {
+      const k = orbit.dist * 0.0015;
+      const right = new THREE.Vector3().setFromMatrixColumn(camera.matrixWorld, 0);
+      const camUp = new THREE.Vector3().setFromMatrixColumn(camera.matrixWorld, 1);
+      orbit.target.addScaledVector(right, -dx * k).addScaledVector(camUp, dy * k);
+      followBox.checked = false;
+    } else {
+      orbit.az -= dx * 0.008;
+      orbit.el = Math.min(1.5, Math.max(-0.2, orbit.el + dy * 0.008));
+    }
+  });
+  el.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    orbit.dist = Math.min(60, Math.max(0.5, orbit.dist * Math.exp(e.deltaY * 0.001)));
+  }, {passive: false});
+
+  // Controls.
+  const playBtn = document.getElementById("play"), slider = document.getElementById("slider");
+  const label = document.getElementById("label"), speedSel = document.getElementById("speed");
+  const ghostBox = document.getElementById("ghost"), followBox = document.getElementById("follow");
+  slider.max = String(T - 1);
+  if (!ref) { ghostBox.checked = false; ghostBox.disabled = true; }
+  let playing = true, t = 0, frame = 0;
+  const setPlaying = (p) => { playing = p; playBtn.textContent = p ? "Pause" : "Play"; };
+  playBtn.onclick = () => setPlaying(!playing);
+  window.addEventListener("keydown", (e) => {
+    if (e.code === "Space") { e.preventDefault(); setPlaying(!playing); }
+  });
+  slider.oninput = () => { setPlaying(false); t = Number(slider.value) / D.fps; };
+
+  function resize() {
+    const w = view.clientWidth || window.innerWidth, h = view.clientHeight || window.innerHeight;
+    renderer.setSize(w, h, false);
+    renderer.domElement.style.width = "100%";
+    renderer.domElement.style.height = "100%";
+    camera.aspect = w / Math.max(h, 1);
+    camera.updateProjectionMatrix();
+  }
+  window.addEventListener("resize", resize);
+  resize();
+
+  function show(f) {
+    frame = f;
+    pose(sim, simPos, simQuat, f);
+    if (ref) { pose(ref, refPos, refQuat, f); ref.root.visible = ghostBox.checked; }
+    if (followBox.checked) {
+      const i = f * NB * 3, k = 0.15;
+      orbit.target.x += k * (simPos[i] - orbit.target.x);
+      orbit.target.y += k * (simPos[i + 1] - orbit.target.y);
+    }
+    slider.value = String(f);
+    label.textContent = `${f} / ${T - 1}  (${(f / D.fps).toFixed(2)} s)`;
+    placeCamera();
+    renderer.render(scene, camera);
+  }
+  let last = performance.now();
+  function loop(now) {
+    const dt = Math.min(0.1, Math.max(0, (now - last) / 1000));  // rAF time may precede `last`
+    last = now;
+    if (playing) t = (t + dt * Number(speedSel.value)) % (T / D.fps);
+    show(Math.max(0, Math.min(T - 1, Math.floor(t * D.fps + 1e-6))));
+    requestAnimationFrame(loop);
+  }
+  show(0);
+  window.__replay = {ready: true, frames: T,
+                     setFrame: (f) => { setPlaying(false); t = f / D.fps; show(f); },
+                     setPlaying, three: {scene, camera, renderer}};
+  requestAnimationFrame(loop);
+})();
+"""
+
+
+# ---- checking a page in headless Chromium (tests, and a quick look without a display) ----------
+CHROMIUM_FLAGS = (
+    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--disable-default-apps", "--disable-extensions", "--mute-audio", "--hide-scrollbars",
+    # WebGL without a GPU: SwiftShader (newer Chromium wants the 'unsafe' opt-in for it).
+    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+)
+
+
+def find_chromium() -> str | None:
+    """Path of a Chromium/Chrome binary (``$CHROMIUM``, /usr/bin/chromium, or on PATH) or None."""
+    import shutil
+    for c in (os.environ.get("CHROMIUM"), "/usr/bin/chromium", "chromium", "chromium-browser",
+              "google-chrome"):
+        if c and (os.path.isfile(c) and os.access(c, os.X_OK) or (os.sep not in c and shutil.which(c))):
+            return c if os.sep in c else shutil.which(c)
+    return None
+
+
+class _PipeCDP:
+    """Chrome DevTools Protocol over ``--remote-debugging-pipe`` (fd 3 in, fd 4 out): no ports,
+    no websocket library."""
+
+    def __init__(self, chromium: str, user_data_dir: str, extra_flags: Sequence[str] = ()):
+        import fcntl
+        import shutil
+        import subprocess
+        cmd_r, self._cmd_w = os.pipe()
+        self._res_r, res_w = os.pipe()
+        # Chromium's ends go to fds >= 10 first, so that they cannot collide with 3 and 4.
+        hi = []
+        for fd in (cmd_r, res_w):
+            hi.append(fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, 10))
+            os.close(fd)
+        cmd_r, res_w = hi
+        argv = [chromium, *CHROMIUM_FLAGS, *extra_flags, f"--user-data-dir={user_data_dir}",
+                "--remote-debugging-pipe", "about:blank"]
+        from jaxmotion.render import quiet_fork
+        # bash moves our pipe ends onto fds 3 and 4, where Chromium expects them.
+        with quiet_fork():
+            self.proc = subprocess.Popen(
+                [shutil.which("bash") or "/bin/bash", "-c",
+                 f'exec "$@" 3<&{cmd_r} 4>&{res_w} {cmd_r}<&- {res_w}>&-', "bash", *argv],
+                pass_fds=(cmd_r, res_w), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL)
+        os.close(cmd_r)
+        os.close(res_w)
+        self._buf = b""
+        self._id = 0
+        self.events: list[dict] = []
+
+    def _read_message(self, deadline: float) -> dict:
+        import select
+        import time
+        while b"\0" not in self._buf:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError("no answer from Chromium")
+            ready, _, _ = select.select([self._res_r], [], [], left)
+            if ready:
+                chunk = os.read(self._res_r, 1 << 20)
+                if not chunk:
+                    raise RuntimeError("Chromium closed the DevTools pipe")
+                self._buf += chunk
+        msg, self._buf = self._buf.split(b"\0", 1)
+        return json.loads(msg)
+
+    def send(self, method: str, params: dict | None = None, session: str | None = None,
+             timeout: float = 30.0) -> dict:
+        import time
+        self._id += 1
+        m = {"id": self._id, "method": method, "params": params or {}}
+        if session:
+            m["sessionId"] = session
+        os.write(self._cmd_w, json.dumps(m).encode() + b"\0")
+        deadline = time.monotonic() + timeout
+        while True:
+            r = self._read_message(deadline)
+            if r.get("id") == self._id:
+                if "error" in r:
+                    raise RuntimeError(f"{method}: {r['error']}")
+                return r.get("result", {})
+            self.events.append(r)
+
+    def pump(self, seconds: float) -> None:
+        """Collects events for ``seconds``."""
+        import time
+        deadline = time.monotonic() + seconds
+        try:
+            while True:
+                self.events.append(self._read_message(deadline))
+        except TimeoutError:
+            pass
+
+    def close(self) -> None:
+        import subprocess
+        try:
+            self.send("Browser.close", timeout=5)
+        except Exception:
+            pass
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        for fd in (self._cmd_w, self._res_r):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+
+def check_in_browser(html_path: str | os.PathLike, png_path: str | os.PathLike | None = None,
+                     width: int = 800, height: int = 600, frame: int | None = None,
+                     chromium: str | None = None, timeout: float = 60.0) -> dict:
+    """Opens a replay page in headless Chromium, shows ``frame`` (None: the middle one), and
+    reports what happened.
+
+    Returns:
+        ``{"ready": bool, "errors": [str], "warnings": [str], "png": path or None}``, where errors
+        are uncaught exceptions, ``console.error`` calls and error-level log entries (e.g. a
+        failed load). Raises FileNotFoundError when no Chromium is found.
+    """
+    import tempfile
+    import time
+    chromium = chromium or find_chromium()
+    if chromium is None:
+        raise FileNotFoundError("no Chromium found (apt-get install chromium)")
+    url = Path(html_path).resolve().as_uri()
+    with tempfile.TemporaryDirectory(prefix="jaxmotion-chromium-") as udd:
+        cdp = _PipeCDP(chromium, udd)
+        try:
+            target = cdp.send("Target.createTarget", {"url": "about:blank"}, timeout=timeout)["targetId"]
+            s = cdp.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+            for m in ("Runtime.enable", "Log.enable", "Page.enable"):
+                cdp.send(m, session=s)
+            cdp.send("Emulation.setDeviceMetricsOverride",
+                     {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}, session=s)
+            cdp.send("Page.navigate", {"url": url}, session=s)
+            deadline = time.monotonic() + timeout
+            ready = False
+            while time.monotonic() < deadline:
+                r = cdp.send("Runtime.evaluate", {"expression": "!!(window.__replay && window.__replay.ready)",
+                                                  "returnByValue": True}, session=s)
+                ready = bool(r.get("result", {}).get("value"))
+                failed = cdp.send("Runtime.evaluate", {"expression": "!!(window.__replay && !window.__replay.ready)",
+                                                       "returnByValue": True}, session=s)
+                if ready or failed.get("result", {}).get("value"):
+                    break
+                cdp.pump(0.2)
+            if ready:
+                expr = ("window.__replay.setFrame(" + ("Math.floor(window.__replay.frames / 2)"
+                                                       if frame is None else str(int(frame))) + ")")
+                cdp.send("Runtime.evaluate", {"expression": expr}, session=s)
+            cdp.pump(0.5)
+            png = None
+            if png_path is not None:
+                shot = cdp.send("Page.captureScreenshot", {"format": "png"}, session=s, timeout=timeout)
+                png = Path(png_path)
+                png.write_bytes(base64.b64decode(shot["data"]))
+            cdp.pump(0.2)
+        finally:
+            cdp.close()
+    errors, warnings = [], []
+    for e in cdp.events:
+        p = e.get("params", {})
+        if e.get("method") == "Runtime.exceptionThrown":
+            d = p.get("exceptionDetails", {})
+            errors.append(d.get("exception", {}).get("description") or d.get("text", "exception"))
+        elif e.get("method") == "Runtime.consoleAPICalled":
+            text = " ".join(str(a.get("value", a.get("description", ""))) for a in p.get("args", []))
+            if p.get("type") in ("error", "assert"):
+                errors.append(text)
+            elif p.get("type") == "warning":
+                warnings.append(text)
+        elif e.get("method") == "Log.entryAdded":
+            entry = p.get("entry", {})
+            if entry.get("level") == "error":
+                errors.append(f"{entry.get('source')}: {entry.get('text')} {entry.get('url', '')}".strip())
+            elif entry.get("level") == "warning":
+                warnings.append(entry.get("text", ""))
+    return {"ready": ready, "errors": errors, "warnings": warnings, "png": png}
+
+
+def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLike,
+                       episode: int = 0, group: int = 0, title: str | None = None) -> Path:
+    """The replay page of one episode of ``eval.rollout``'s output (alive frames only), with
+    ``group``'s reference clip as the ghost (``eval.reference_sequence``, moved rigidly in xy +
+    yaw onto the simulation's first root frame as ``eval.world_aligned`` does)."""
+    from jaxmotion.eval import reference_sequence
+    from jaxmotion.render import GROUP_PALETTE, align_pose, align_to_start, group_colors
+    ch = learner.env.character
+    n = int(np.asarray(ro["alive"])[:, episode].sum())
+    sp = np.asarray(ro["pos"])[:n, episode]
+    sq = np.asarray(ro["quat"])[:n, episode]
+    rp, rq = reference_sequence(learner, group, n)
+    q, off = align_to_start(rp[:, 0], rq[:, 0], sp[0, 0], sq[0, 0])
+    rp, rq = align_pose(q, off, rp, rq)
+    names = [g.name for g in learner.cfg.env.groups]
+    colors = group_colors([links for links, _ in learner.env.group_idx])
+    legend = {name: GROUP_PALETTE[i % len(GROUP_PALETTE)] for i, name in enumerate(names)}
+    ref_name = names[group] if names else "reference"
+    return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / learner.env.dt,
+                      character_geoms(ch.sword_shield, colors),
+                      title=title or f"jaxmotion replay (ghost: {ref_name} reference)", legend=legend)

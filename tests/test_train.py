@@ -1,0 +1,285 @@
+"""The training driver: exact resume, one vs two devices, config errors, objective weights.
+
+The two heavy tests share one tiny configuration and, in this process, one compiled training
+chunk: ``jaxmotion.train.make_train_chunk`` is memoised for the module, so the uninterrupted run,
+the interrupted run and its resumption all execute the same program (compiling a chunk takes
+about a minute on a 2-core CPU). The two-device run needs its own process, because the number
+of host devices is fixed when JAX starts; it compiles the second program.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+from conftest import REPO, jit_enabled
+from jaxmotion import checkpoint as ckpt
+from jaxmotion import config as C
+from jaxmotion import train as train_mod
+from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
+from jaxmotion.motion import MotionLib, make_test_clip
+from jaxmotion.trainer import DiscConfig, Learner, PPOConfig, TrainConfig
+
+EXPERIMENT = "smoke"
+TIMING_FIELDS = ("steps_per_s",)
+
+
+def tiny_config() -> TrainConfig:
+    """The smoke experiment shrunk until compilation dominates: 4 envs x horizon 4, chunk 1.
+
+    Episodes last 6 control steps, so the 12 steps of a 3-iteration run cross automatic resets
+    (and the resumed part of a run starts mid-episode).
+    """
+    base = C.load_experiment(EXPERIMENT)
+    return dataclasses.replace(
+        base,
+        env=dataclasses.replace(base.env, episode_steps=6),
+        net=dataclasses.replace(base.net, policy_hidden=(16, 16), critic_hidden=(16, 16),
+                                disc_hidden=(16, 16), disc_heads=2),
+        ppo=dataclasses.replace(base.ppo, num_envs=4, horizon=4, minibatch_size=8, epochs=1),
+        disc=dataclasses.replace(base.disc, minibatch_size=8),
+        seed=0, iterations=3, chunk=1, checkpoint_every=1, resume="")
+
+
+def _leaves(tree) -> list[tuple[str, np.ndarray]]:
+    return [(jax.tree_util.keystr(p), np.asarray(x)) for p, x in jax.tree_util.tree_flatten_with_path(tree)[0]]
+
+
+def _rows(run_dir: Path) -> list[dict]:
+    return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines() if line.strip()]
+
+
+def _untimed(row: dict) -> dict:
+    return {k: v for k, v in row.items() if k not in TIMING_FIELDS}
+
+
+@pytest.fixture(scope="module")
+def motion_data(data_dir):
+    """Points ``jaxmotion.data`` at the shared motions for this module."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("JAXMOTION_DATA", str(data_dir))
+        yield data_dir
+
+
+@pytest.fixture(scope="module")
+def shared_chunk():
+    """Memoises ``make_train_chunk`` by (config minus run bookkeeping, chunk, devices).
+
+    Yields the list of programs actually built, so a test can check how many were compiled.
+    """
+    built: dict = {}
+    real = train_mod.make_train_chunk
+
+    def memo(learner, mesh, chunk, example):
+        key = (dataclasses.replace(learner.cfg, resume="", iterations=0, checkpoint_every=0), chunk,
+               tuple(d.id for d in mesh.devices.flat))
+        if key not in built:
+            built[key] = real(learner, mesh, chunk, example)
+        return built[key]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(train_mod, "make_train_chunk", memo)
+        yield built
+
+
+@pytest.fixture(scope="module")
+def runs(motion_data, shared_chunk, tmp_path_factory):
+    """Run A: 3 chunks uninterrupted. Run B: stopped after chunk 1 (its checkpoint written), then
+    resumed to the end. Also keeps B's state after chunk 1 (one iteration on one device)."""
+    cfg = tiny_config()
+    root = tmp_path_factory.mktemp("runs")
+    times = {}
+    with jit_enabled():
+        t = time.perf_counter()
+        a = train_mod.train(EXPERIMENT, cfg, run_dir=root / "A", progress=False, tensorboard=True)
+        times["A (compile + 3 chunks)"] = time.perf_counter() - t
+        t = time.perf_counter()
+        b1 = train_mod.train(EXPERIMENT, cfg, run_dir=root / "B", progress=False, tensorboard=False,
+                             stop_after_chunks=1)
+        b1_leaves = _leaves(b1.state)  # host copies: the state must outlive later runs.
+        b1_rows = _rows(root / "B")
+        # A row logged after the last checkpoint by the "killed" process: resume must drop it.
+        with open(root / "B" / "metrics.jsonl", "a") as f:
+            f.write(json.dumps({**b1_rows[-1], "iteration": 2, "samples": -1.0}) + "\n")
+        b = train_mod.train(EXPERIMENT, dataclasses.replace(cfg, resume=str(root / "B")),
+                            progress=False, tensorboard=False)
+        times["B (1 chunk, then resume for 2)"] = time.perf_counter() - t
+    print("\nrun times:", {k: f"{v:.1f}s" for k, v in times.items()})
+    return dict(cfg=cfg, a=a, b1=b1, b1_leaves=b1_leaves, b1_rows=b1_rows, b=b, programs=len(shared_chunk))
+
+
+@pytest.mark.slow
+def test_resume_reproduces_uninterrupted_run(runs):
+    cfg, a, b1, b = runs["cfg"], runs["a"], runs["b1"], runs["b"]
+    assert runs["programs"] == 1, "all three runs should share one compiled chunk"
+    assert int(b1.state.iteration) == 1 and [r["iteration"] for r in runs["b1_rows"]] == [1]
+    assert b.run_dir == b1.run_dir
+    assert int(a.state.iteration) == int(b.state.iteration) == cfg.iterations
+
+    # Every leaf of the final state, bit for bit: networks, optimisers, normalisers, PopArt,
+    # environment states (physics, history, step counters, per-env keys) and the loop's key.
+    la, lb = _leaves(a.state), _leaves(b.state)
+    assert [k for k, _ in la] == [k for k, _ in lb]
+    for (k, x), (_, y) in zip(la, lb):
+        assert x.dtype == y.dtype and x.shape == y.shape, k
+        np.testing.assert_array_equal(x, y, err_msg=k)
+    # Chunk 1 moved the state (so equality after resume is not trivially the initial state).
+    moved = dict(runs["b1_leaves"])
+    assert any(not np.array_equal(moved[k], x) for k, x in la if "policy_params" in k)
+
+    # The logs: the same iterations with the same values, except wall-clock timings.
+    rows_a, rows_b = _rows(a.run_dir), _rows(b.run_dir)
+    assert [r["iteration"] for r in rows_a] == [r["iteration"] for r in rows_b] == [1, 2, 3]
+    assert [_untimed(r) for r in rows_a] == [_untimed(r) for r in rows_b]
+    assert [_untimed(r) for r in a.metrics] == [_untimed(r) for r in rows_a]
+    assert [r["iteration"] for r in b.metrics] == [2, 3]
+    assert rows_a[-1]["samples"] == cfg.iterations * cfg.samples_per_iteration
+    for r in rows_a:
+        assert all(np.isfinite(v) for v in r.values()), r
+    # Episodes of 6 steps: the 12 steps crossed automatic resets.
+    assert sum(r["env/episodes_done"] for r in rows_a) > 0
+
+    # The run folder.
+    for name in ("metrics.jsonl", "config.json", "checkpoints", "tb"):
+        assert (a.run_dir / name).exists(), name
+    assert any((a.run_dir / "tb").iterdir())
+    steps = sorted(int(p.name) for p in (a.run_dir / "checkpoints").iterdir() if p.name.isdigit())
+    assert steps == [1, 2, 3]
+    assert 3 in [int(p.name) for p in (b.run_dir / "checkpoints").iterdir() if p.name.isdigit()]
+    experiment, saved = ckpt.read_config(a.run_dir, TrainConfig)
+    assert experiment == EXPERIMENT and saved == cfg
+    # The resumed run kept its folder's config (resume is not written into it).
+    assert ckpt.read_config(b.run_dir, TrainConfig) == (EXPERIMENT, cfg)
+
+
+TWO_DEVICE_SCRIPT = textwrap.dedent("""
+    import json, sys
+    from pathlib import Path
+    import jax, numpy as np
+    from jaxmotion import checkpoint as ckpt
+    from jaxmotion.train import train
+    from jaxmotion.trainer import TrainConfig
+
+    src, out = Path(sys.argv[1]), Path(sys.argv[2])
+    assert len(jax.devices()) == 2, jax.devices()
+    experiment, cfg = ckpt.read_config(src, TrainConfig)
+    # train() puts the env batch on make_mesh() over all devices: 2 envs per device here.
+    res = train(experiment, cfg, run_dir=out / "run", progress=False, tensorboard=False,
+                stop_after_chunks=1)
+    ts = res.state
+    paths = jax.tree_util.tree_flatten_with_path(ts)[0]
+    np.savez(out / "state.npz", *[np.asarray(x) for _, x in paths])
+    sharded = [len(x.sharding.device_set) for x in jax.tree.leaves((ts.env_state, ts.obs)) if x.size]
+    replicated = [len(x.sharding.device_set) for x in jax.tree.leaves(ts.policy_params)]
+    specs = sorted({str(x.sharding.spec) for x in jax.tree.leaves((ts.env_state, ts.obs)) if x.size})
+    json.dump({"keys": [jax.tree_util.keystr(p) for p, _ in paths], "env_device_counts": sharded,
+               "param_device_counts": replicated, "env_specs": specs, "metrics": res.metrics},
+              open(out / "info.json", "w"))
+""")
+
+
+@pytest.mark.slow
+def test_two_devices_match_one_device(runs, tmp_path, request):
+    """The same global batch (4 envs) split 2+2 over two host devices gives the same update as one
+    device: compared with run B's state after its first iteration (same config, seed, chunk)."""
+    script = tmp_path / "two_devices.py"
+    script.write_text(TWO_DEVICE_SCRIPT)
+    env = dict(os.environ, JAX_DISABLE_JIT="0", XLA_FLAGS="--xla_force_host_platform_device_count=2",
+               JAX_PLATFORMS="cpu")
+    env.setdefault("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax_compilation_cache")))
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
+    t = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(script), str(runs["b1"].run_dir), str(tmp_path)],
+                          env=env, capture_output=True, text=True, timeout=900, cwd=REPO)
+    print(f"\ntwo-device subprocess: {time.perf_counter() - t:.1f}s")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    info = json.loads((tmp_path / "info.json").read_text())
+
+    # The environment batch really was split over both devices; parameters were replicated.
+    assert info["env_device_counts"] and set(info["env_device_counts"]) == {2}
+    assert all("data" in s for s in info["env_specs"]), info["env_specs"]
+    assert set(info["param_device_counts"]) == {2}
+
+    one = runs["b1_leaves"]
+    two = np.load(tmp_path / "state.npz")
+    assert info["keys"] == [k for k, _ in one]
+    report = []
+    for i, (k, x) in enumerate(one):
+        y = two[f"arr_{i}"]
+        assert x.shape == y.shape and x.dtype == y.dtype, k
+        if k.startswith((".policy_params", ".critic_params", ".disc_params")):
+            scale = max(1.0, float(np.abs(x).max()))
+            err = float(np.abs(x.astype(np.float64) - y).max()) if x.size else 0.0
+            report.append((k, err))
+            assert err <= 1e-4 * scale, (k, err, scale)
+        elif k in (".rng", ".iteration"):
+            np.testing.assert_array_equal(x, y, err_msg=k)
+    assert report
+    worst = max(report, key=lambda r: r[1])
+    print(f"largest parameter difference: {worst[1]:.3g} at {worst[0]}")
+    # The logged metrics of that iteration agree too (float tolerance; timings excepted).
+    row1, row2 = _untimed(runs["b1_rows"][0]), _untimed(info["metrics"][0])
+    assert row1.keys() == row2.keys()
+    for k in row1:
+        assert row2[k] == pytest.approx(row1[k], rel=1e-3, abs=1e-4), k
+
+
+def test_cli_rejects_config_typo():
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    proc = subprocess.run([sys.executable, "-m", "jaxmotion.train", EXPERIMENT, "ppo.num_env=4"],
+                          env=env, capture_output=True, text=True, timeout=300, cwd=REPO)
+    assert proc.returncode != 0
+    assert "ppo.num_env" in proc.stderr and "num_envs" in proc.stderr, proc.stderr
+    assert "minibatch_size" in proc.stderr  # the other valid keys are listed too
+    assert "run folder" not in proc.stdout
+
+
+def test_cli_rejects_unknown_experiment(capsys):
+    assert train_mod.main(["no_such_experiment"]) != 0
+    err = capsys.readouterr().err
+    assert "no_such_experiment" in err and EXPERIMENT in err and "composite/chest_open+squat" in err, err
+
+
+def test_override_value_of_wrong_type_is_rejected():
+    cfg = C.load_experiment(EXPERIMENT)
+    with pytest.raises(C.ConfigError, match="ppo.clip_eps"):
+        C.apply_overrides(cfg, ["ppo.clip_eps=abc"])
+    with pytest.raises(C.ConfigError, match="num_envs"):
+        C.apply_overrides(cfg, ["ppo.num_env=4"])
+    assert C.apply_overrides(cfg, ["ppo.clip_eps=0.1"]).ppo.clip_eps == 0.1
+
+
+@pytest.fixture(scope="module")
+def synthetic_env():
+    """A two-group environment on synthetic clips (no motion files needed)."""
+    clip = make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87, name="stand")
+    lib = MotionLib.from_clips([clip])
+    env_cfg = EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")), episode_steps=20)
+    return HumanoidEnv(env_cfg, motion_libs=(lib, lib), init_lib=lib)
+
+
+@pytest.mark.parametrize("weights", [(0.2, 0.3, 0.5), (1.0,), (1.0, -0.5), (0.0, 0.0)])
+def test_bad_objective_weights_rejected(synthetic_env, weights):
+    cfg = TrainConfig(env=synthetic_env.cfg, ppo=PPOConfig(num_envs=4, horizon=4, minibatch_size=8,
+                                                          objective_weights=weights),
+                      disc=DiscConfig(minibatch_size=8))
+    with pytest.raises(ValueError, match=r"objective_weights must be 2 non-negative"):
+        Learner(cfg, env=synthetic_env)
+
+
+def test_good_objective_weights_are_normalised(synthetic_env):
+    cfg = TrainConfig(env=synthetic_env.cfg, ppo=PPOConfig(num_envs=4, horizon=4, minibatch_size=8,
+                                                          objective_weights=(1.0, 3.0)),
+                      disc=DiscConfig(minibatch_size=8))
+    learner = Learner(cfg, env=synthetic_env)
+    np.testing.assert_allclose(np.asarray(learner.objective_weights), [0.25, 0.75])
