@@ -1,7 +1,7 @@
 """Throughput benchmarks: physics only, policy rollout, and the full training loop.
 
 ``python -m jaxmotion.bench [--quick] [--batches 1,64,256,1024] [--parts physics,rollout,train]
-[--exp smoke] [--out bench.json]`` prints a table and writes JSON.
+[--exp composite/chest_open+squat] [--out bench.json]`` prints a table and writes JSON.
 
 * **physics**: one jitted ``lax.scan`` over ``--steps`` control steps of ``vmap(pd_step)`` on a
   batch of standing characters (PD targets 0, small random joint offsets so the batch elements
@@ -58,7 +58,7 @@ class BenchConfig:
     noise: float = 0.02
     """Standard deviation (rad) of the random joint-angle offsets of the initial states."""
     seed: int = 0
-    exp: str = "smoke"
+    exp: str = "composite/chest_open+squat"
     """Experiment whose config the rollout and train parts use (num_envs = batch)."""
     iters: int = 0
     """Train: iterations per compiled chunk; 0 keeps the experiment's ``chunk``."""
@@ -342,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--parts", default="physics", help="comma-separated: physics,rollout,train")
     p.add_argument("--steps", type=int, help="control steps per physics call (default 8, quick 2)")
     p.add_argument("--seconds", type=float, help="minimum measuring time per number (default 3, quick 0)")
-    p.add_argument("--exp", default="smoke", help="experiment for rollout/train (default smoke)")
+    p.add_argument("--exp", default=None, help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)")
     p.add_argument("--iters", type=int, default=0, help="train iterations per chunk (default: the experiment's)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--timeout", type=float, default=1800.0, help="abort a part that runs longer (s; 0: never)")
@@ -364,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
     jax.config.update("jax_disable_jit", False)
     cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
                       seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
-                      exp=a.exp, iters=a.iters or (1 if a.quick else 0), seed=a.seed)
+                      exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters or (1 if a.quick else 0), seed=a.seed)
     result = run(cfg, parts, a.timeout)
     print(report(result))
     with open(a.out, "w") as f:

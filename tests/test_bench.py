@@ -19,7 +19,7 @@ def _positive(x) -> bool:
 
 @pytest.mark.physics
 def test_physics_bench_writes_complete_json(tmp_path, request):
-    """``--quick --parts physics`` runs compiled (JAX_DISABLE_JIT=0) and writes every field.
+    """``--quick`` (physics, rollout and the full training iteration) runs compiled (JAX_DISABLE_JIT=0) and writes every field.
 
     The subprocess shares a JAX compilation cache under pytest's cache folder: the first run
     compiles MJX twice (about a minute on a 2-core CPU), later runs load the executables.
@@ -27,15 +27,19 @@ def test_physics_bench_writes_complete_json(tmp_path, request):
     out = tmp_path / "bench.json"
     env = dict(os.environ, JAX_DISABLE_JIT="0")
     env.setdefault("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax_compilation_cache")))
-    cmd = [sys.executable, "-m", "jaxmotion.bench", "--quick", "--parts", "physics", "--batches", "1,2",
-           "--steps", "2", "--out", str(out)]
+    cmd = [sys.executable, "-m", "jaxmotion.bench", "--quick", "--parts", "physics,rollout,train",
+           "--batches", "2", "--steps", "2", "--out", str(out)]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     result = json.loads(out.read_text())
     for key in ("device", "jax_version", "mujoco_version"):
         assert isinstance(result[key], str) and result[key]
-    assert result["rollout"] == [] and result["train"] == [] and result["errors"] == {}
-    assert [row["batch"] for row in result["physics"]] == [1, 2]
+    assert result["errors"] == {}
+    assert [row["batch"] for row in result["physics"]] == [2]
+    assert [row["batch"] for row in result["rollout"]] == [2] and [row["batch"] for row in result["train"]] == [2]
+    assert _positive(result["rollout"][0]["control_steps_per_s"])
+    for key in ("control_steps_per_s", "compile_s", "peak_mem_mb"):
+        assert _positive(result["train"][0][key]), (key, result["train"][0])
     for row in result["physics"]:
         for key in ("mjx_control_steps_per_s", "mujoco_c_control_steps_per_s", "compile_s"):
             assert _positive(row[key]), (key, row)

@@ -3,8 +3,10 @@
 The two heavy tests share one tiny configuration and, in this process, one compiled training
 chunk: ``jaxmotion.train.make_train_chunk`` is memoised for the module, so the uninterrupted run,
 the interrupted run and its resumption all execute the same program (compiling a chunk takes
-about a minute on a 2-core CPU). The two-device run needs its own process, because the number
-of host devices is fixed when JAX starts; it compiles the second program.
+about a minute on a 2-core CPU). Sharing is only for speed: with three separate compilations, as
+in real separate processes, the resumed run was bit-identical too (checked once, 200 s). The
+two-device run needs its own process, because the number of host devices is fixed when JAX
+starts; it compiles the second program and reuses the one-device run's first iteration.
 """
 
 from __future__ import annotations
@@ -133,7 +135,7 @@ def test_resume_reproduces_uninterrupted_run(runs):
     for (k, x), (_, y) in zip(la, lb):
         assert x.dtype == y.dtype and x.shape == y.shape, k
         np.testing.assert_array_equal(x, y, err_msg=k)
-    # Chunk 1 moved the state (so equality after resume is not trivially the initial state).
+    # The resumed iterations did change the parameters after the checkpoint.
     moved = dict(runs["b1_leaves"])
     assert any(not np.array_equal(moved[k], x) for k, x in la if "policy_params" in k)
 
@@ -188,10 +190,32 @@ TWO_DEVICE_SCRIPT = textwrap.dedent("""
 """)
 
 
+def _max_rel_err(x: np.ndarray, y: np.ndarray) -> float:
+    """max |x - y| over the leaf, relative to the leaf's largest magnitude."""
+    if not x.size:
+        return 0.0
+    x64 = x.astype(np.float64)
+    scale = float(np.abs(x64).max())
+    err = float(np.abs(x64 - y).max())
+    return err / scale if scale > 0 else err
+
+
 @pytest.mark.slow
 def test_two_devices_match_one_device(runs, tmp_path, request):
     """The same global batch (4 envs) split 2+2 over two host devices gives the same update as one
-    device: compared with run B's state after its first iteration (same config, seed, chunk)."""
+    device: compared with run B's state after its first iteration (same config, seed, chunk).
+
+    Not bit for bit: the two-device program runs the MJX physics as a differently shaped
+    computation, and float32 MJX gives slightly different numbers per compiled batch shape (even
+    on one device a batch-1 and a batch-4 program differ by up to ~1e-4 in qpos after 16
+    substeps of contact-rich motion). Measured here: rollouts and statistics agree to 2e-4
+    relative, gradients (Adam's moments) to 3e-3 (asserted: 5e-3 and 5e-2, a margin for other
+    CPUs), and parameters to float tolerance except a handful of elements (3 of 8440 in the
+    policy) where Adam's first step, lr * sign(g), turned the sign of a near-zero gradient element
+    into a 2 * lr difference.
+    A real data-parallel error (a per-device mean, unsynchronised gradients or normalisers)
+    would differ at the O(1) level everywhere.
+    """
     script = tmp_path / "two_devices.py"
     script.write_text(TWO_DEVICE_SCRIPT)
     env = dict(os.environ, JAX_DISABLE_JIT="0", XLA_FLAGS="--xla_force_host_platform_device_count=2",
@@ -210,28 +234,60 @@ def test_two_devices_match_one_device(runs, tmp_path, request):
     assert all("data" in s for s in info["env_specs"]), info["env_specs"]
     assert set(info["param_device_counts"]) == {2}
 
+    cfg = runs["cfg"]
+    n = cfg.samples_per_iteration
+    ppo_steps = cfg.ppo.epochs * n // cfg.ppo.minibatch_size
+    disc_steps = n // cfg.disc.minibatch_size
+    # Adam moves an element by at most ~lr per step: the bound for a flipped-sign element.
+    adam_bound = {".policy_params": 2 * cfg.ppo.actor_lr * ppo_steps,
+                  ".critic_params": 2 * cfg.ppo.critic_lr * ppo_steps,
+                  ".disc_params": 2 * cfg.disc.lr * disc_steps}
+
     one = runs["b1_leaves"]
     two = np.load(tmp_path / "state.npz")
     assert info["keys"] == [k for k, _ in one]
-    report = []
+    worst: dict[str, tuple[float, str]] = {}
+    params: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+
+    def note(kind, err, k):
+        if err >= worst.get(kind, (-1.0, ""))[0]:
+            worst[kind] = (err, k)
+
     for i, (k, x) in enumerate(one):
         y = two[f"arr_{i}"]
         assert x.shape == y.shape and x.dtype == y.dtype, k
-        if k.startswith((".policy_params", ".critic_params", ".disc_params")):
-            scale = max(1.0, float(np.abs(x).max()))
-            err = float(np.abs(x.astype(np.float64) - y).max()) if x.size else 0.0
-            report.append((k, err))
-            assert err <= 1e-4 * scale, (k, err, scale)
-        elif k in (".rng", ".iteration"):
+        if not np.issubdtype(x.dtype, np.floating):
+            # Keys, counters, step counts, contact indices: identical.
             np.testing.assert_array_equal(x, y, err_msg=k)
-    assert report
-    worst = max(report, key=lambda r: r[1])
-    print(f"largest parameter difference: {worst[1]:.3g} at {worst[0]}")
-    # The logged metrics of that iteration agree too (float tolerance; timings excepted).
+        elif k.startswith(tuple(adam_bound)):
+            params.setdefault(k.split("[")[0], []).append((x, y))
+        elif k.startswith((".opt_state", ".disc_opt_state")):
+            err = _max_rel_err(x, y)
+            note("adam moments", err, k)
+            assert err <= 5e-2, (k, err)
+        else:
+            err = _max_rel_err(x, y)
+            note("rollout and statistics", err, k)
+            assert err <= 5e-3, (k, err)
+    assert params.keys() == adam_bound.keys()
+    for net, pairs in params.items():
+        diff = np.concatenate([np.abs(x.astype(np.float64) - y).ravel() for x, y in pairs])
+        tol = np.concatenate([np.full(x.size, 1e-4 * max(1.0, float(np.abs(x).max()))) for x, _ in pairs])
+        outliers = int((diff > tol).sum())
+        note(f"{net} (max abs; {outliers}/{diff.size} beyond 1e-4 x scale)", float(diff.max()), net)
+        assert diff.max() <= adam_bound[net] + tol.max(), (net, diff.max(), adam_bound[net])
+        assert outliers <= 0.01 * diff.size, (net, outliers, diff.size)
+    print("two vs one device, largest differences:")
+    for kind, (err, k) in worst.items():
+        print(f"  {kind}: {err:.3g} at {k}")
+
+    # The logged metrics of that iteration agree to float tolerance too (timings excepted).
     row1, row2 = _untimed(runs["b1_rows"][0]), _untimed(info["metrics"][0])
     assert row1.keys() == row2.keys()
+    mdiff = {k: abs(row1[k] - row2[k]) / max(1.0, abs(row1[k])) for k in row1}
+    print("  metrics: %.3g at %s" % max((v, k) for k, v in mdiff.items()))
     for k in row1:
-        assert row2[k] == pytest.approx(row1[k], rel=1e-3, abs=1e-4), k
+        assert row2[k] == pytest.approx(row1[k], rel=1e-2, abs=1e-3), k
 
 
 def test_cli_rejects_config_typo():
@@ -247,7 +303,8 @@ def test_cli_rejects_config_typo():
 def test_cli_rejects_unknown_experiment(capsys):
     assert train_mod.main(["no_such_experiment"]) != 0
     err = capsys.readouterr().err
-    assert "no_such_experiment" in err and EXPERIMENT in err and "composite/chest_open+squat" in err, err
+    assert "no_such_experiment" in err and "Available" in err, err
+    assert all(name in err for name in C.list_experiments()), err
 
 
 def test_override_value_of_wrong_type_is_rejected():
