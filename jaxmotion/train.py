@@ -4,12 +4,15 @@ Python only drives the compiled chunks (``trainer.make_train_chunk``): it shows 
 appends ``metrics.jsonl``, writes TensorBoard events and orbax checkpoints between chunks.
 ``resume=<run-folder>`` continues a killed run from its latest checkpoint; on CPU the result is
 identical to an uninterrupted run (same chunking, the RNG lives in the checkpointed state).
+``JAXMOTION_DISTRIBUTED=1`` calls ``jax.distributed.initialize()`` first, for several hosts
+(not yet exercised on a real cluster).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -150,6 +153,10 @@ def main(argv: list[str] | None = None) -> int:
         print("experiments:", ", ".join(C.list_experiments()))
         return 0 if argv else 2
     name, overrides = argv[0], argv[1:]
+    if os.environ.get("JAXMOTION_DISTRIBUTED") == "1":
+        # Several hosts: JAX finds the cluster (SLURM, Open MPI, or JAX_COORDINATOR_ADDRESS /
+        # JAX_NUM_PROCESSES / JAX_PROCESS_ID); the mesh then spans every host's devices.
+        jax.distributed.initialize()
     try:
         cfg = C.apply_overrides(C.load_experiment(name), overrides)
     except C.ConfigError as e:
