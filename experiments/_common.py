@@ -25,4 +25,5 @@ def composite(upper: tuple[str, ...], lower: tuple[str, ...], weights=(0.5, 0.5)
         groups=(GroupConfig(name="upper", motions=upper, speed_range=upper_speed),
                 GroupConfig(name="lower", motions=lower)),
         episode_steps=episode_steps)
-    return TrainConfig(env=env, ppo=PPOConfig(objective_weights=weights), iterations=5000, chunk=10)
+    return TrainConfig(env=env, ppo=PPOConfig(objective_weights=weights), iterations=5000, chunk=10,
+                       eval_every=25)

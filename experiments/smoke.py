@@ -13,4 +13,4 @@ def config():
         ppo=dataclasses.replace(cfg.ppo, num_envs=16, horizon=8, minibatch_size=64, epochs=2,
                                 actor_lr=3e-4, critic_lr=1e-3),
         disc=dataclasses.replace(cfg.disc, lr=1e-4, minibatch_size=64),
-        iterations=6, chunk=2, checkpoint_every=1)
+        iterations=6, chunk=2, checkpoint_every=1, eval_every=0)

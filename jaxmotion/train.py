@@ -56,6 +56,25 @@ def _trim_metrics(path: Path, upto: int) -> None:
     tmp.replace(path)
 
 
+def _log_eval(learner: Learner, ts: TrainState, cfg: TrainConfig, path: Path, last: dict, writer) -> None:
+    """Appends one evaluation row (DTW error per group, episode length, fall rate) to the log."""
+    from jaxmotion import eval as E  # eval imports this module's neighbours; keep startup light
+
+    res = E.evaluate(learner, ts, cfg.eval_episodes)
+    row = {"iteration": last["iteration"], "samples": last["samples"],
+           "eval/episode_length_s": res["episode_length_s"], "eval/fall_rate": res["fall_rate"]}
+    for g, m in res["groups"].items():
+        row[f"eval/{g}/dtw_error_m"] = m["dtw_error_m_mean"]
+        row[f"eval/{g}/dtw_error_world_m"] = m["dtw_error_world_m_mean"]
+    with open(path, "a") as f:
+        f.write(json.dumps(row) + "\n")
+    if writer is not None:
+        for k, v in row.items():
+            if k.startswith("eval/"):
+                writer.add_scalar(k, v, row["iteration"])
+    last.update(row)
+
+
 def new_run_dir(experiment: str, root: Path = Path("runs")) -> Path:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     d = root / experiment / stamp
@@ -135,6 +154,8 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         done = int(ts.iteration) >= cfg.iterations
         if done or chunks % cfg.checkpoint_every == 0 or stop_after_chunks == chunks:
             ckpt.save(mgr, int(ts.iteration), ts)
+        if cfg.eval_every and (chunks % cfg.eval_every == 0 or done):
+            _log_eval(learner, ts, cfg, metrics_path, last, writer)
         if on_chunk is not None:
             on_chunk(int(ts.iteration), last)
         if stop_after_chunks is not None and chunks >= stop_after_chunks:

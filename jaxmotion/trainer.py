@@ -112,6 +112,8 @@ class TrainConfig:
     resume: str = ""
     """A run folder to continue from its latest checkpoint."""
     eval_episodes: int = 4
+    eval_every: int = 0
+    """Chunks between deterministic evaluations logged as ``eval/<group>/dtw_error_m`` (0: never)."""
 
     @property
     def samples_per_iteration(self) -> int:
