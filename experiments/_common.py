@@ -1,7 +1,7 @@
 """Shared pieces of the experiment files (files starting with '_' are not experiments)."""
 
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
-from jaxmotion.trainer import DiscConfig, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.trainer import DiscConfig, NetConfig, PPOConfig, TrainConfig  # noqa: F401 (re-exported)
 
 WALK = (
     "compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",

@@ -1,5 +1,4 @@
 """Full-body imitation of the four LAFAN1 walk clips with one discriminator ensemble."""
-import dataclasses
 
 from _common import WALK, EnvConfig, GroupConfig, PPOConfig, TrainConfig
 
