@@ -35,7 +35,7 @@ from jaxmotion import checkpoint as ckpt
 from jaxmotion import metrics as M
 from jaxmotion.envs import observations as O
 from jaxmotion.motion import rotations as R
-from jaxmotion.motion.motionlib import sample
+from jaxmotion.motion.motionlib import MotionState, sample
 from jaxmotion.trainer import Learner, TrainConfig, TrainState
 
 
@@ -108,21 +108,51 @@ def group_frame_positions(pos: np.ndarray, quat: np.ndarray, links: np.ndarray, 
     return np.asarray(R.quat_rotate(np.broadcast_to(inv_q[:, None], rel.shape[:-1] + (4,)), rel))
 
 
+def align_to_start(ref_root_pos: np.ndarray, ref_root_quat: np.ndarray, sim_root_pos0: np.ndarray,
+                   sim_root_quat0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid xy + yaw motion taking the reference's first root heading frame onto the
+    simulation's first one: ``(q_align [4] wxyz, offset [3])`` with
+    ``p' = rotate(q_align, p) + offset``.
+
+    Args:
+      ref_root_pos: [T, 3], ref_root_quat: [T, 4] (only frame 0 is used).
+      sim_root_pos0: [3], sim_root_quat0: [4].
+    """
+    f32 = lambda x: np.asarray(x, np.float32)  # heading_frame is jnp (float32 without x64)
+    o_ref, inv_ref = (np.asarray(x, np.float64) for x in O.heading_frame(
+        f32(ref_root_pos[0]), f32(ref_root_quat[0])))
+    o_sim, inv_sim = (np.asarray(x, np.float64) for x in O.heading_frame(
+        f32(sim_root_pos0), f32(sim_root_quat0)))
+    q = np.asarray(R.quat_mul(R.quat_conj(inv_sim), inv_ref))  # ref heading frame -> sim's
+    return q, o_sim - np.asarray(R.quat_rotate(q, o_ref))
+
+
+def align_pose(q_align: np.ndarray, offset: np.ndarray, pos: np.ndarray,
+               quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Applies ``align_to_start``'s motion to positions [..., 3] and orientations [..., 4]."""
+    pos, quat = np.asarray(pos, np.float64), np.asarray(quat, np.float64)
+    p = np.asarray(R.quat_rotate(np.broadcast_to(q_align, pos.shape[:-1] + (4,)), pos)) + offset
+    q = np.asarray(R.quat_mul(np.broadcast_to(q_align, quat.shape), quat))
+    return p, q
+
+
 def world_aligned(ref_pos: np.ndarray, ref_quat: np.ndarray, sim_pos0: np.ndarray, sim_quat0: np.ndarray) -> np.ndarray:
     """Reference positions [T, nb, 3] moved rigidly (xy + yaw) onto the simulation's first root frame."""
-    o_ref, inv_ref = (np.asarray(x) for x in O.heading_frame(ref_pos[0, 0], ref_quat[0, 0]))
-    o_sim, inv_sim = (np.asarray(x) for x in O.heading_frame(sim_pos0[0], sim_quat0[0]))
-    q = R.quat_mul(R.quat_conj(inv_sim), inv_ref)  # ref heading frame -> sim heading frame
-    rel = ref_pos - o_ref
-    return np.asarray(R.quat_rotate(np.broadcast_to(q, rel.shape[:-1] + (4,)), rel)) + o_sim
+    q, off = align_to_start(ref_pos[:, 0], ref_quat[:, 0], sim_pos0[0], sim_quat0[0])
+    return align_pose(q, off, ref_pos, ref_quat)[0]
 
 
-def reference_sequence(learner: Learner, group: int, num_frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """The group's first clip at the control rate, repeated to ``num_frames``: (pos, quat)."""
+def reference_state(learner: Learner, group: int, num_frames: int) -> MotionState:
+    """The group's first clip at the control rate, repeated to ``num_frames`` frames."""
     lib = learner.env.motion_libs[group]
     dur = float(lib.clip_duration[0])
     t = (np.arange(num_frames) * learner.env.dt) % max(dur, 1e-6)
-    ms = sample(lib, jnp.zeros(num_frames, jnp.int32), jnp.asarray(t, jnp.float32))
+    return sample(lib, jnp.zeros(num_frames, jnp.int32), jnp.asarray(t, jnp.float32))
+
+
+def reference_sequence(learner: Learner, group: int, num_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """``reference_state``'s link positions [T, nb, 3] and orientations [T, nb, 4]."""
+    ms = reference_state(learner, group, num_frames)
     return np.asarray(ms.body_pos), np.asarray(ms.body_quat)
 
 

@@ -345,47 +345,15 @@ def write_video(frames: np.ndarray | Iterable[np.ndarray], path: str | os.PathLi
 
 
 # ---- the reference ghost -----------------------------------------------------------------------
-def align_to_start(ref_root_pos: np.ndarray, ref_root_quat: np.ndarray, sim_root_pos0: np.ndarray,
-                   sim_root_quat0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rigid xy + yaw motion taking the reference's first heading frame onto the simulation's
-    first one (as ``eval.world_aligned``), as (quaternion [4], translation function inputs).
-
-    Returns:
-        (q_align [4] wxyz, offset [3]) such that ``p' = rotate(q_align, p - o_ref) + o_sim`` with
-        the offset = o_sim - rotate(q_align, o_ref).
-    """
-    from jaxmotion.envs import observations as O
-    from jaxmotion.motion import rotations as R
-    f32 = lambda x: np.asarray(x, np.float32)  # heading_frame is jnp (float32 without x64)
-    o_ref, inv_ref = (np.asarray(x, np.float64) for x in O.heading_frame(
-        f32(ref_root_pos[0]), f32(ref_root_quat[0])))
-    o_sim, inv_sim = (np.asarray(x, np.float64) for x in O.heading_frame(
-        f32(sim_root_pos0), f32(sim_root_quat0)))
-    q = np.asarray(R.quat_mul(R.quat_conj(inv_sim), inv_ref))
-    return q, o_sim - np.asarray(R.quat_rotate(q, o_ref))
-
-
-def align_pose(q_align: np.ndarray, offset: np.ndarray, pos: np.ndarray,
-               quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Applies ``align_to_start``'s motion to positions [..., 3] and orientations [..., 4]."""
-    from jaxmotion.motion import rotations as R
-    pos, quat = np.asarray(pos, np.float64), np.asarray(quat, np.float64)
-    qb = np.broadcast_to(q_align, pos.shape[:-1] + (4,))
-    p = np.asarray(R.quat_rotate(qb, pos)) + offset
-    q = np.asarray(R.quat_mul(np.broadcast_to(q_align, quat.shape), quat))
-    return p, q
+# The alignment and the reference clip are eval's (one definition, so the ghost and the metrics agree).
+from jaxmotion.eval import align_pose, align_to_start, reference_state  # noqa: E402
 
 
 def reference_qpos(learner, group: int, num_frames: int) -> np.ndarray:
     """[num_frames, nq] qpos of the group's first clip at the control rate, repeated (as
     ``eval.reference_sequence``), in the clip's own world frame."""
-    import jax.numpy as jnp
-    from jaxmotion.motion.motionlib import qpos_qvel, sample
-    lib = learner.env.motion_libs[group]
-    dur = float(lib.clip_duration[0])
-    t = (np.arange(num_frames) * learner.env.dt) % max(dur, 1e-6)
-    ms = sample(lib, jnp.zeros(num_frames, jnp.int32), jnp.asarray(t, jnp.float32))
-    return np.asarray(qpos_qvel(ms)[0], np.float64)
+    from jaxmotion.motion.motionlib import qpos_qvel
+    return np.asarray(qpos_qvel(reference_state(learner, group, num_frames))[0], np.float64)
 
 
 def aligned_reference_qpos(ref_qpos: np.ndarray, sim_qpos0: np.ndarray) -> np.ndarray:
