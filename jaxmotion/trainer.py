@@ -244,7 +244,7 @@ class Learner:
             p, o = carry
             x_pol, x_ref, k = xs
             (_, m), grads = jax.value_and_grad(D.disc_loss, argnums=1, has_aux=True)(
-                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode)
+                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode, net.head_grad_sq_norms)
             updates, o = self.disc_optimizer.update(grads, o, p)
             return (optax.apply_updates(p, updates), o), m
 

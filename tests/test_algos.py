@@ -282,6 +282,27 @@ def test_disc_per_head_gradients_match_jacobian_on_mlp():
     assert all(np.isfinite(g).all() for g in jax.tree.leaves(loss_grads))
 
 
+@pytest.mark.parametrize("obs_size,hidden,activation", [
+    (9, (5,), "tanh"),       # D > H_1 (the quadratic form), one layer, act' with a gradient
+    (6, (8, 4), "elu"),      # D <= H_1 (the direct product)
+    (7, (6, 5, 4), "relu"),  # three hidden layers, D > H_1
+])
+def test_structured_head_grad_norms_match_backward_passes(obs_size, hidden, activation):
+    net = networks.make_discriminator_network(obs_size, num_heads=3, hidden_sizes=hidden,
+                                              activation=activation)
+    params = net.init(jax.random.PRNGKey(0))
+    x = jax.random.normal(jax.random.PRNGKey(1), (4, obs_size))
+    per_head = disc.input_gradients(net.apply, params, x, "per_head")  # [H, N, D]
+    np.testing.assert_allclose(net.head_grad_sq_norms(params, x), jnp.sum(per_head**2, -1).T,
+                               rtol=1e-5, atol=1e-7)
+    # The penalty and its parameter gradient (double backward) agree with the backward passes.
+    gp = lambda p, fn: disc.gradient_penalty(net.apply, p, x, "per_head", fn)  # noqa: E731
+    np.testing.assert_allclose(gp(params, net.head_grad_sq_norms), gp(params, None), rtol=1e-5)
+    fast, slow = (jax.grad(gp)(params, fn) for fn in (net.head_grad_sq_norms, None))
+    for a, b in zip(jax.tree.leaves(fast), jax.tree.leaves(slow)):
+        np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-6)
+
+
 def test_interpolate_per_sample_alpha():
     pol = jnp.zeros((64, 3))
     ref = jnp.ones((64, 3))

@@ -17,7 +17,10 @@ The reward of a group is the ensemble mean of the clipped logits (Eq. 5), ``mean
 
 The per-sample input gradients are taken with one backward pass per head through the batched
 forward pass, which assumes the discriminator treats samples independently (no batch
-statistics), true of ``nets.networks.DiscriminatorEnsemble``.
+statistics), true of ``nets.networks.DiscriminatorEnsemble``. For that network the per-head
+squared norms can instead come from ``networks.head_input_grad_sq_norms`` (``sq_norms_fn``): the
+same values from the chain rule written out, with about 40% fewer multiply-adds, which matters
+because the per-head penalty is the largest learning cost per sample after PPO.
 """
 
 from __future__ import annotations
@@ -84,6 +87,7 @@ def gradient_penalty(
     params: Params,
     x: jax.Array,
     gp_mode: str = "per_head",
+    sq_norms_fn: Callable[[Params, jax.Array], jax.Array] | None = None,
 ) -> jax.Array:
     """``[]`` mean over samples (and heads) of ``(|grad_x D(x)|_2 - 1)^2`` at the given inputs.
 
@@ -92,9 +96,14 @@ def gradient_penalty(
       params: discriminator parameters.
       x: ``[N, D]`` points at which to penalise (the interpolates).
       gp_mode: ``"per_head"`` (Eq. 2) or ``"sum_heads"`` (authors' code).
+      sq_norms_fn: optional ``(params, x) -> [N, H]`` squared per-head gradient norms, used
+        instead of per-head backward passes in ``"per_head"`` mode.
     """
-    grads = input_gradients(apply_fn, params, x, gp_mode)
-    return jnp.mean(jnp.square(_safe_norm(grads) - 1.0))
+    if gp_mode == "per_head" and sq_norms_fn is not None:
+        norms = jnp.sqrt(sq_norms_fn(params, x) + 1e-12)
+    else:
+        norms = _safe_norm(input_gradients(apply_fn, params, x, gp_mode))
+    return jnp.mean(jnp.square(norms - 1.0))
 
 
 def interpolate(rng: jax.Array, policy_obs: jax.Array, ref_obs: jax.Array) -> jax.Array:
@@ -111,6 +120,7 @@ def disc_loss(
     rng: jax.Array,
     gp_weight: float = 10.0,
     gp_mode: str = "per_head",
+    sq_norms_fn: Callable[[Params, jax.Array], jax.Array] | None = None,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Hinge loss plus gradient penalty of one discriminator ensemble (module docstring).
 
@@ -123,6 +133,7 @@ def disc_loss(
       rng: key for the interpolation coefficients.
       gp_weight: weight of the gradient penalty.
       gp_mode: ``"per_head"`` (paper Eq. 2) or ``"sum_heads"`` (authors' code).
+      sq_norms_fn: see ``gradient_penalty``.
 
     Returns:
       ``(loss [], metrics)``, metrics a dict of scalars: ``loss``, ``hinge_loss``,
@@ -135,7 +146,7 @@ def disc_loss(
     ref_logits = apply_fn(params, ref_obs)
     hinge = hinge_loss(policy_logits, ref_logits)
     x_hat = jax.lax.stop_gradient(interpolate(rng, policy_obs, ref_obs))
-    gp = gradient_penalty(apply_fn, params, x_hat, gp_mode)
+    gp = gradient_penalty(apply_fn, params, x_hat, gp_mode, sq_norms_fn)
     loss = hinge + gp_weight * gp
     correct = jnp.concatenate([(policy_logits < 0).ravel(), (ref_logits > 0).ravel()])
     metrics = {
