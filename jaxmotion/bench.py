@@ -1,7 +1,8 @@
 """Throughput benchmarks: physics only, policy rollout, and the full training loop.
 
-``python -m jaxmotion.bench [--quick] [--batches 1,64,256,1024] [--parts physics,rollout,train]
-[--exp composite/chest_open+squat] [--out bench.json]`` prints a table and writes JSON.
+``python -m jaxmotion.bench [--quick] [--batches 64,256,1024] [--parts physics,rollout,train]
+[--exp composite/chest_open+squat] [--out bench.json]`` prints a table and writes JSON. ``make
+bench`` runs all three parts at batches 64, 256 and 1024 (and 4096, 16384 on a GPU).
 
 * **physics**: one jitted ``lax.scan`` over ``--steps`` control steps of ``vmap(pd_step)`` on a
   batch of standing characters (PD targets 0, small random joint offsets so the batch elements
@@ -10,7 +11,13 @@
   to a Python loop over ``mj_step`` when that is unavailable (``mujoco_c_method`` says which).
   Both are reported in control steps per second (one control step = ``substeps`` physics steps).
 * **rollout**: ``Learner.rollout`` (``horizon`` control steps of policy + env), jitted, donated.
-* **train**: ``make_train_chunk`` (``chunk`` whole iterations in one jitted scan).
+* **train**: ``make_train_chunk`` (``--iters`` whole iterations in one jitted scan, default 1:
+  the scan adds nothing per iteration, and one iteration at batch 1024 already takes seconds).
+
+Both report ``physics_cost_ratio``, the time per control step relative to physics alone at the
+same batch: the full training iteration's is the "learning overhead" (1.0 = no cost beyond
+physics). ``peak_mem_mb`` is the device's peak bytes in use where it reports them, else the
+process's peak resident memory, which only grows over a run (batches go smallest first).
 
 Compilation is timed separately (``compile_s``: lowering plus XLA compile) and followed by one
 untimed warm-up call; each measurement then repeats calls until ``--seconds`` have passed (the
@@ -42,7 +49,7 @@ from jaxmotion.physics import sim
 
 ROOT_HEIGHT = 0.89
 """Standing root height (m) of the humanoid with all joint angles 0."""
-DEFAULT_BATCHES = (1, 64, 256, 1024)
+DEFAULT_BATCHES = (64, 256, 1024)
 GPU_EXTRA_BATCHES = (4096, 16384)
 
 
@@ -60,7 +67,7 @@ class BenchConfig:
     seed: int = 0
     exp: str = "composite/chest_open+squat"
     """Experiment whose config the rollout and train parts use (num_envs = batch)."""
-    iters: int = 0
+    iters: int = 1
     """Train: iterations per compiled chunk; 0 keeps the experiment's ``chunk``."""
     physics: sim.PhysicsConfig = sim.PhysicsConfig()
 
@@ -244,7 +251,7 @@ def bench_rollout(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[
         state = jax.block_until_ready(fn((ts,)))
         _, calls, elapsed = time_calls(fn, state, cfg.seconds)
         rows.append({"batch": b, "control_steps_per_s": b * tc.ppo.horizon * calls / elapsed,
-                     "compile_s": compile_s})
+                     "compile_s": compile_s, "peak_mem_mb": peak_memory_mb()})
     return rows
 
 
@@ -273,6 +280,17 @@ PARTS = {"physics": bench_physics, "rollout": bench_rollout, "train": bench_trai
 
 
 # ---- report -------------------------------------------------------------------------------
+def add_physics_ratios(result: dict[str, Any]) -> None:
+    """Sets ``physics_cost_ratio`` (physics rate / this rate) on rollout and train rows whose
+    batch also has a physics row: the cost of a control step relative to physics alone."""
+    physics = {r["batch"]: r["mjx_control_steps_per_s"] for r in result.get("physics", [])}
+    for part in ("rollout", "train"):
+        for row in result.get(part, []):
+            if row["batch"] in physics and row.get("control_steps_per_s"):
+                row["physics_cost_ratio"] = physics[row["batch"]] / row["control_steps_per_s"]
+
+
+
 def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> str:
     """An aligned text table of ``rows``; ``columns`` are (header, key, format) triples."""
     cells = [[h for h, _, _ in columns]]
@@ -294,8 +312,9 @@ def report(result: dict[str, Any]) -> str:
                                     ("compile s", "compile_s", ".1f"), ("mjx root z", "mjx_root_height", ".3f")])]
     for part in ("rollout", "train"):
         if result[part]:
-            out += ["", f"{part} (control steps/s)",
+            out += ["", f"{part} (control steps/s; cost/physics = time per control step over physics alone; exp {result['settings']['exp']})",
                     format_table(result[part], [("batch", "batch", "d"), ("steps/s", "control_steps_per_s", ".0f"),
+                                                ("cost/physics", "physics_cost_ratio", ".2f"),
                                                 ("compile s", "compile_s", ".1f"), ("peak MB", "peak_mem_mb", ".0f")])]
     for part, msg in result.get("errors", {}).items():
         out += ["", f"{part}: FAILED: {msg}"]
@@ -330,6 +349,7 @@ def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, A
             log(f"{part}: FAILED: {result['errors'][part]}")
         finally:
             faulthandler.cancel_dump_traceback_later()
+    add_physics_ratios(result)
     if hasattr(os, "getloadavg"):  # other processes on the host make the numbers noisy
         result["settings"]["host_load_avg_1_5_15min"] = [round(x, 2) for x in os.getloadavg()]
     return result
@@ -338,12 +358,12 @@ def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, A
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m jaxmotion.bench", description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true", help="tiny run for tests: batches 1,4, 2 steps, no timing floor")
-    p.add_argument("--batches", help="comma-separated batch sizes (default 1,64,256,1024; on GPU also 4096,16384)")
-    p.add_argument("--parts", default="physics", help="comma-separated: physics,rollout,train")
+    p.add_argument("--batches", help="comma-separated batch sizes (default 64,256,1024; on GPU also 4096,16384)")
+    p.add_argument("--parts", default="physics,rollout,train", help="comma-separated subset of physics,rollout,train (default: all)")
     p.add_argument("--steps", type=int, help="control steps per physics call (default 8, quick 2)")
     p.add_argument("--seconds", type=float, help="minimum measuring time per number (default 3, quick 0)")
     p.add_argument("--exp", default=None, help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)")
-    p.add_argument("--iters", type=int, default=0, help="train iterations per chunk (default: the experiment's)")
+    p.add_argument("--iters", type=int, default=1, help="train iterations per compiled call (0: the experiment's chunk)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--timeout", type=float, default=1800.0, help="abort a part that runs longer (s; 0: never)")
     p.add_argument("--out", default="bench.json", help="JSON output file")
@@ -364,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
     jax.config.update("jax_disable_jit", False)
     cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
                       seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
-                      exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters or (1 if a.quick else 0), seed=a.seed)
+                      exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed)
     result = run(cfg, parts, a.timeout)
     print(report(result))
     with open(a.out, "w") as f:

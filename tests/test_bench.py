@@ -38,6 +38,8 @@ def test_physics_bench_writes_complete_json(tmp_path, request):
     assert [row["batch"] for row in result["physics"]] == [2]
     assert [row["batch"] for row in result["rollout"]] == [2] and [row["batch"] for row in result["train"]] == [2]
     assert _positive(result["rollout"][0]["control_steps_per_s"])
+    for part in ("rollout", "train"):
+        assert _positive(result[part][0]["physics_cost_ratio"]), result[part]
     for key in ("control_steps_per_s", "compile_s", "peak_mem_mb"):
         assert _positive(result["train"][0][key]), (key, result["train"][0])
     for row in result["physics"]:
@@ -65,3 +67,14 @@ def test_format_table_aligns_and_marks_missing():
 def test_cli_rejects_unknown_part():
     with pytest.raises(SystemExit):
         bench.main(["--parts", "physics,nope"])
+
+
+def test_physics_ratios_pair_rows_by_batch():
+    result = {"physics": [{"batch": 64, "mjx_control_steps_per_s": 1000.0},
+                          {"batch": 256, "mjx_control_steps_per_s": 2000.0}],
+              "rollout": [{"batch": 256, "control_steps_per_s": 1600.0}],
+              "train": [{"batch": 64, "control_steps_per_s": 400.0}, {"batch": 1024, "control_steps_per_s": 9.0}]}
+    bench.add_physics_ratios(result)
+    assert result["rollout"][0]["physics_cost_ratio"] == pytest.approx(1.25)
+    assert result["train"][0]["physics_cost_ratio"] == pytest.approx(2.5)
+    assert "physics_cost_ratio" not in result["train"][1]  # no physics row at that batch
