@@ -20,14 +20,16 @@ physics). ``peak_mem_mb`` is the device's peak bytes in use where it reports the
 process's peak resident memory, which only grows over a run (batches go smallest first).
 
 Compilation is timed separately (``compile_s``: lowering plus XLA compile) and followed by one
-untimed warm-up call; each measurement then repeats calls until ``--seconds`` have passed (the
-physics calls each from the same initial states). Batch 256 stays in the default list because
+untimed warm-up call. All parts at one batch size are then timed in ``--rounds`` alternating
+rounds that together last at least ``--seconds`` per part (the physics calls each from the same
+initial states), so that a slow spell of the host slows physics and training alike. Batch 256 stays in the default list because
 jax 0.10.2 hung there (DESIGN.md); ``--timeout`` turns a hang into an exit with a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import faulthandler
 import functools
@@ -62,6 +64,8 @@ class BenchConfig:
     """Control steps per physics call (the length of the jitted scan)."""
     seconds: float = 3.0
     """Minimum measuring time per number (calls repeat until it has passed)."""
+    rounds: int = 3
+    """The parts at one batch size are timed in this many alternating rounds."""
     noise: float = 0.02
     """Standard deviation (rad) of the random joint-angle offsets of the initial states."""
     seed: int = 0
@@ -138,9 +142,40 @@ def standing_qpos(m: mujoco.MjModel, batch: int, noise: float, seed: int) -> np.
     return q
 
 
+# ---- timed programs -----------------------------------------------------------------------
+@dataclasses.dataclass
+class Timed:
+    """A compiled program timed in rounds: ``state = fn(state)`` (from ``fresh()`` if given)."""
+
+    fn: Callable[[Any], Any]
+    state: Any
+    steps_per_call: int
+    """Control steps one call advances (batch x steps)."""
+    fresh: Callable[[], Any] | None = None
+    calls: int = 0
+    elapsed: float = 0.0
+
+    def measure(self, seconds: float) -> None:
+        self.state, n, e = time_calls(self.fn, self.state, seconds, self.fresh)
+        self.calls += n
+        self.elapsed += e
+
+    @property
+    def rate(self) -> float:
+        """Control steps per second over every timed call so far."""
+        return self.steps_per_call * self.calls / self.elapsed
+
+
+def _compile(fn, *args, **jit_kwargs):
+    """``(compiled, seconds)``: lowering plus XLA compilation of ``jax.jit(fn)`` for ``args``."""
+    t0 = time.perf_counter()
+    compiled = jax.jit(fn, **jit_kwargs).lower(*args).compile()
+    return compiled, time.perf_counter() - t0
+
+
 # ---- physics ------------------------------------------------------------------------------
-def mjx_control_steps(cfg: BenchConfig, qpos: np.ndarray) -> dict[str, float]:
-    """MJX throughput on the initial poses ``qpos`` [B, nq]; control steps/s and compile s."""
+def prepare_mjx(cfg: BenchConfig, qpos: np.ndarray) -> tuple[Timed, dict[str, float]]:
+    """MJX stepping the initial poses ``qpos`` [B, nq] for ``cfg.steps`` control steps per call."""
     model = sim.mjx_model(cfg.physics)
     step = jax.vmap(functools.partial(sim.pd_step, substeps=cfg.physics.substeps), in_axes=(None, 0, None))
 
@@ -151,21 +186,21 @@ def mjx_control_steps(cfg: BenchConfig, qpos: np.ndarray) -> dict[str, float]:
     d0 = mjx.make_data(model)
     data = jax.vmap(lambda q: d0.replace(qpos=q))(jnp.asarray(qpos, d0.qpos.dtype))
     target = jnp.zeros((model.nu,), d0.ctrl.dtype)
-    t0 = time.perf_counter()
-    compiled = jax.jit(run, donate_argnums=1).lower(model, data, target).compile()
-    compile_s = time.perf_counter() - t0
-    fn = lambda d: compiled(model, d, target)
+    compiled, compile_s = _compile(run, model, data, target, donate_argnums=1)
     # Every call starts from the initial poses, as the MuJoCo C rollouts do: held at zero targets
     # with no balance control, the characters would fall over some tens of seconds in.
     fresh = lambda: jax.tree.map(jnp.copy, data)
-    jax.block_until_ready(fn(fresh()))  # warm-up
-    out, calls, elapsed = time_calls(fn, None, cfg.seconds, fresh)
-    return {"mjx_control_steps_per_s": qpos.shape[0] * cfg.steps * calls / elapsed, "compile_s": compile_s,
-            "mjx_root_height": float(jnp.mean(out.qpos[:, 2]))}
+    timed = Timed(lambda d: compiled(model, d, target), None, qpos.shape[0] * cfg.steps, fresh)
+    jax.block_until_ready(timed.fn(fresh()))  # warm-up
+    return timed, {"compile_s": compile_s}
 
 
-def mujoco_c_control_steps(cfg: BenchConfig, qpos: np.ndarray) -> dict[str, Any]:
-    """MuJoCo C throughput from the same initial poses, ctrl held at 0, on all usable CPUs."""
+def prepare_mujoco_c(cfg: BenchConfig, qpos: np.ndarray, stack: contextlib.ExitStack) -> tuple[Timed, dict[str, Any]]:
+    """MuJoCo C from the same initial poses, ctrl held at 0, on all usable CPUs.
+
+    ``mujoco.rollout``'s native thread pool (kept open on ``stack``) where available, else a
+    Python loop over ``mj_step``. The timed state is the final root heights ``[B]``.
+    """
     m = sim.mj_model(cfg.physics)
     nstep = cfg.steps * cfg.physics.substeps
     batch = qpos.shape[0]
@@ -185,36 +220,24 @@ def mujoco_c_control_steps(cfg: BenchConfig, qpos: np.ndarray) -> dict[str, Any]
         datas = [mujoco.MjData(m) for _ in range(nthread)]
         ctrl = np.zeros((1, 1, m.nu))
         out = np.empty((batch, nstep, init.shape[1]))
-        with rollout.Rollout(nthread=nthread) as pool:
-            fn = lambda _: pool.rollout(m, datas, init, ctrl, nstep=nstep, state=out)
-            fn(None)  # warm-up
-            _, calls, elapsed = time_calls(fn, None, cfg.seconds)
-        method, height = f"mujoco.rollout nthread={nthread}", out[:, -1, 1 + 2].mean()
+        pool = stack.enter_context(rollout.Rollout(nthread=nthread))
+
+        def fn(_):
+            pool.rollout(m, datas, init, ctrl, nstep=nstep, state=out)
+            return out[:, -1, 1 + 2].copy()
+        method = f"mujoco.rollout nthread={nthread}"
     else:
         datas = [mujoco.MjData(m) for _ in range(batch)]
 
         def fn(_):
-            for dd, s in zip(datas, init):
-                mujoco.mj_setState(m, dd, s, spec)
+            for dd, st in zip(datas, init):
+                mujoco.mj_setState(m, dd, st, spec)
                 dd.ctrl[:] = 0.0
                 mujoco.mj_step(m, dd, nstep)
-        _, calls, elapsed = time_calls(fn, None, cfg.seconds)
-        method, height = "python loop over mj_step (1 thread)", float(np.mean([dd.qpos[2] for dd in datas]))
-    return {"mujoco_c_control_steps_per_s": batch * cfg.steps * calls / elapsed, "mujoco_c_method": method,
-            "mujoco_c_root_height": float(height)}
-
-
-def bench_physics(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
-    """One row per batch size: MJX and MuJoCo C control steps per second."""
-    rows = []
-    for b in cfg.batches:
-        log(f"physics: batch {b} ...")
-        qpos = standing_qpos(sim.mj_model(cfg.physics), b, cfg.noise, cfg.seed)
-        row = {"batch": b, **mjx_control_steps(cfg, qpos), **mujoco_c_control_steps(cfg, qpos)}
-        rows.append(row)
-        log(f"  mjx {row['mjx_control_steps_per_s']:.0f}/s (compile {row['compile_s']:.1f} s), "
-            f"C {row['mujoco_c_control_steps_per_s']:.0f}/s")
-    return rows
+            return np.array([dd.qpos[2] for dd in datas])
+        method = "python loop over mj_step (1 thread)"
+    timed = Timed(fn, fn(None), batch * cfg.steps)  # the first call is the warm-up
+    return timed, {"mujoco_c_method": method}
 
 
 # ---- rollout and train --------------------------------------------------------------------
@@ -237,46 +260,81 @@ def _learner(cfg: BenchConfig, batch: int):
     return Learner(tc), tc
 
 
-def bench_rollout(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
-    """Control steps/s of ``Learner.rollout`` (policy + env, ``horizon`` steps per call)."""
-    rows = []
-    for b in cfg.batches:
-        log(f"rollout: batch {b} ...")
-        learner, tc = _learner(cfg, b)
-        ts = learner.init(jax.random.PRNGKey(cfg.seed))
-        t0 = time.perf_counter()
-        compiled = jax.jit(learner.rollout, donate_argnums=0).lower(ts).compile()
-        compile_s = time.perf_counter() - t0
-        fn = lambda s: compiled(s[0])
-        state = jax.block_until_ready(fn((ts,)))
-        _, calls, elapsed = time_calls(fn, state, cfg.seconds)
-        rows.append({"batch": b, "control_steps_per_s": b * tc.ppo.horizon * calls / elapsed,
-                     "compile_s": compile_s, "peak_mem_mb": peak_memory_mb()})
-    return rows
+def prepare_rollout(cfg: BenchConfig, batch: int) -> tuple[Timed, dict[str, float]]:
+    """``Learner.rollout`` (policy + env, ``horizon`` control steps per call), state donated."""
+    learner, tc = _learner(cfg, batch)
+    ts = learner.init(jax.random.PRNGKey(cfg.seed))
+    compiled, compile_s = _compile(learner.rollout, ts, donate_argnums=0)
+    fn = lambda s: compiled(s[0])
+    state = jax.block_until_ready(fn((ts,)))  # warm-up
+    return Timed(fn, state, batch * tc.ppo.horizon), {"compile_s": compile_s}
 
 
-def bench_train(cfg: BenchConfig, log: Callable[[str], None] = print) -> list[dict[str, Any]]:
-    """Control steps/s of whole training iterations (``make_train_chunk``), compile time, memory."""
+def prepare_train(cfg: BenchConfig, batch: int) -> tuple[Timed, dict[str, float]]:
+    """Whole training iterations (``make_train_chunk``, ``chunk`` of them per call), donated."""
     from jaxmotion.trainer import make_mesh, make_train_chunk, shard_state
 
-    rows = []
-    for b in cfg.batches:
-        log(f"train: batch {b} ...")
-        learner, tc = _learner(cfg, b)
-        mesh = make_mesh()
-        ts = shard_state(learner.init(jax.random.PRNGKey(cfg.seed)), mesh)
-        t0 = time.perf_counter()
-        compiled = make_train_chunk(learner, mesh, tc.chunk, ts).lower(ts).compile()
-        compile_s = time.perf_counter() - t0
-        fn = lambda s: compiled(s[0])
-        state = jax.block_until_ready(fn((ts,)))
-        _, calls, elapsed = time_calls(fn, state, cfg.seconds)
-        rows.append({"batch": b, "control_steps_per_s": b * tc.ppo.horizon * tc.chunk * calls / elapsed,
-                     "compile_s": compile_s, "peak_mem_mb": peak_memory_mb()})
+    learner, tc = _learner(cfg, batch)
+    mesh = make_mesh()
+    ts = shard_state(learner.init(jax.random.PRNGKey(cfg.seed)), mesh)
+    t0 = time.perf_counter()
+    compiled = make_train_chunk(learner, mesh, tc.chunk, ts).lower(ts).compile()
+    compile_s = time.perf_counter() - t0
+    fn = lambda s: compiled(s[0])
+    state = jax.block_until_ready(fn((ts,)))  # warm-up
+    return Timed(fn, state, batch * tc.ppo.horizon * tc.chunk), {"compile_s": compile_s}
+
+
+PARTS = ("physics", "rollout", "train")
+
+
+def bench_batch(cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str, str],
+                log: Callable[[str], None] = print) -> dict[str, dict[str, Any]]:
+    """Compiles every part at one batch size, then times them in ``cfg.rounds`` alternating rounds.
+
+    Alternating makes a slow spell of the host (other processes, a noisy neighbour) hit physics
+    and training alike, so their ratio holds even when the absolute numbers wander. A part that
+    fails to build is recorded in ``errors`` (physics failures are raised).
+
+    Returns:
+        ``{part: row}`` for the parts that ran.
+    """
+    rows: dict[str, dict[str, Any]] = {}
+    timers: dict[str, Timed] = {}
+    with contextlib.ExitStack() as stack:
+        for part in parts:
+            log(f"{part}: batch {batch} (compiling) ...")
+            try:
+                if part == "physics":
+                    qpos = standing_qpos(sim.mj_model(cfg.physics), batch, cfg.noise, cfg.seed)
+                    timers["physics"], rows["physics"] = prepare_mjx(cfg, qpos)
+                    timers["mujoco_c"], info = prepare_mujoco_c(cfg, qpos, stack)
+                    rows["physics"].update(info)
+                else:
+                    timers[part], rows[part] = (prepare_rollout if part == "rollout" else prepare_train)(cfg, batch)
+            except Exception as err:  # noqa: BLE001 - later parts and the JSON still get written
+                if part == "physics":
+                    raise
+                errors[part] = f"{type(err).__name__}: {err}"
+                log(f"{part}: FAILED: {errors[part]}")
+        rounds = max(1, cfg.rounds)
+        for r in range(rounds):
+            log(f"  timing round {r + 1}/{rounds}")
+            for t in timers.values():
+                t.measure(cfg.seconds / rounds)
+    mem = peak_memory_mb()
+    if "physics" in rows:
+        rows["physics"].update({
+            "batch": batch, "mjx_control_steps_per_s": timers["physics"].rate,
+            "mjx_root_height": float(jnp.mean(timers["physics"].state.qpos[:, 2])),
+            "mujoco_c_control_steps_per_s": timers["mujoco_c"].rate,
+            "mujoco_c_root_height": float(np.mean(timers["mujoco_c"].state))})
+    for part in ("rollout", "train"):
+        if part in rows:
+            rows[part].update({"batch": batch, "control_steps_per_s": timers[part].rate, "peak_mem_mb": mem})
+    summary = ", ".join(f"{k} {t.rate:.0f}/s" for k, t in timers.items())
+    log(f"  batch {batch}: {summary}")
     return rows
-
-
-PARTS = {"physics": bench_physics, "rollout": bench_rollout, "train": bench_train}
 
 
 # ---- report -------------------------------------------------------------------------------
@@ -322,31 +380,29 @@ def report(result: dict[str, Any]) -> str:
 
 
 def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, Any]:
-    """Runs ``parts`` and returns the JSON-ready result; a failing part is reported in ``errors``.
+    """Runs ``parts`` at every batch size and returns the JSON-ready result.
 
     Args:
         cfg: what to measure.
-        parts: names from ``PARTS``, run in that order.
-        timeout: seconds after which a part that has not finished aborts the process with a
-            traceback (a hung compile or execution, as with jax 0.10.2); 0 disables.
+        parts: a subset of ``PARTS``.
+        timeout: seconds after which a batch size that has not finished aborts the process with
+            a traceback (a hung compile or execution, as with jax 0.10.2); 0 disables.
     """
     result = {"device": device_description(), "jax_version": jax.__version__, "mujoco_version": mujoco.__version__,
               "settings": {"control_steps_per_call": cfg.steps, "substeps": cfg.physics.substeps,
-                           "sim_hz": cfg.physics.sim_hz, "min_seconds": cfg.seconds, "exp": cfg.exp,
+                           "sim_hz": cfg.physics.sim_hz, "min_seconds": cfg.seconds, "rounds": cfg.rounds,
+                           "exp": cfg.exp, "train_iterations_per_call": cfg.iters or "experiment chunk",
                            # With a persistent cache, compile_s of a cache hit is the load time.
                            "compilation_cache": jax.config.jax_compilation_cache_dir or None},
               "physics": [], "rollout": [], "train": [], "errors": {}}
     log = lambda s: print(s, file=sys.stderr, flush=True)
-    for part in parts:
+    for batch in cfg.batches:
         if timeout > 0:
             faulthandler.dump_traceback_later(timeout, exit=True)
         try:
-            result[part] = PARTS[part](cfg, log)
-        except Exception as err:  # noqa: BLE001 - later parts and the JSON still get written
-            if part == "physics":
-                raise
-            result["errors"][part] = f"{type(err).__name__}: {err}"
-            log(f"{part}: FAILED: {result['errors'][part]}")
+            todo = [p for p in PARTS if p in parts and p not in result["errors"]]
+            for part, row in bench_batch(cfg, batch, todo, result["errors"], log).items():
+                result[part].append(row)
         finally:
             faulthandler.cancel_dump_traceback_later()
     add_physics_ratios(result)
@@ -365,7 +421,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--exp", default=None, help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)")
     p.add_argument("--iters", type=int, default=1, help="train iterations per compiled call (0: the experiment's chunk)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--timeout", type=float, default=1800.0, help="abort a part that runs longer (s; 0: never)")
+    p.add_argument("--rounds", type=int, help="alternating timing rounds per batch size (default 3, quick 1)")
+    p.add_argument("--timeout", type=float, default=1800.0, help="abort a batch size that runs longer (s; 0: never)")
     p.add_argument("--out", default="bench.json", help="JSON output file")
     a = p.parse_args(argv)
     parts = [s.strip() for s in a.parts.split(",") if s.strip()]
@@ -384,7 +441,8 @@ def main(argv: list[str] | None = None) -> int:
     jax.config.update("jax_disable_jit", False)
     cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
                       seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
-                      exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed)
+                      exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed,
+                      rounds=a.rounds or (1 if a.quick else 3))
     result = run(cfg, parts, a.timeout)
     print(report(result))
     with open(a.out, "w") as f:
