@@ -73,6 +73,8 @@ class BenchConfig:
     """Experiment whose config the rollout and train parts use (num_envs = batch)."""
     iters: int = 1
     """Train: iterations per compiled chunk; 0 keeps the experiment's ``chunk``."""
+    overrides: tuple[str, ...] = ()
+    """``key=value`` overrides of the experiment's config, as ``make train ARGS=...`` takes."""
     physics: sim.PhysicsConfig = sim.PhysicsConfig()
 
 
@@ -249,7 +251,7 @@ def _learner(cfg: BenchConfig, batch: int):
     except Exception as err:  # noqa: BLE001 - any import failure means the part cannot run
         raise RuntimeError(f"the rollout/train benchmarks need jaxmotion.trainer and jaxmotion.envs.humanoid, "
                            f"which failed to import: {type(err).__name__}: {err}") from err
-    tc = C.load_experiment(cfg.exp)
+    tc = C.apply_overrides(C.load_experiment(cfg.exp), cfg.overrides)
     n = batch * tc.ppo.horizon
     fit = lambda mb: math.gcd(n, mb)  # the largest size <= mb that divides the sample count
     tc = dataclasses.replace(
@@ -391,7 +393,7 @@ def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, A
     result = {"device": device_description(), "jax_version": jax.__version__, "mujoco_version": mujoco.__version__,
               "settings": {"control_steps_per_call": cfg.steps, "substeps": cfg.physics.substeps,
                            "sim_hz": cfg.physics.sim_hz, "min_seconds": cfg.seconds, "rounds": cfg.rounds,
-                           "exp": cfg.exp, "train_iterations_per_call": cfg.iters or "experiment chunk",
+                           "exp": cfg.exp, "overrides": list(cfg.overrides), "train_iterations_per_call": cfg.iters or "experiment chunk",
                            # With a persistent cache, compile_s of a cache hit is the load time.
                            "compilation_cache": jax.config.jax_compilation_cache_dir or None},
               "physics": [], "rollout": [], "train": [], "errors": {}}
@@ -419,6 +421,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, help="control steps per physics call (default 8, quick 2)")
     p.add_argument("--seconds", type=float, help="minimum measuring time per number (default 3, quick 0)")
     p.add_argument("--exp", default=None, help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)")
+    p.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                   help="config overrides for rollout/train, e.g. --set disc.gp_mode=sum_heads")
     p.add_argument("--iters", type=int, default=1, help="train iterations per compiled call (0: the experiment's chunk)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--rounds", type=int, help="alternating timing rounds per batch size (default 3, quick 1)")
@@ -442,7 +446,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
                       seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
                       exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed,
-                      rounds=a.rounds or (1 if a.quick else 3))
+                      rounds=a.rounds or (1 if a.quick else 3), overrides=tuple(a.set))
     result = run(cfg, parts, a.timeout)
     print(report(result))
     with open(a.out, "w") as f:

@@ -90,7 +90,10 @@ class DiscConfig:
     lr: float = 1e-5
     gp_weight: float = 10.0
     gp_mode: str = "per_head"
-    """'per_head' (paper Eq. 2) or 'sum_heads' (the authors' code)."""
+    """'per_head' (paper Eq. 2) or 'sum_heads' (the authors' code). Per head is the costlier: its
+    32 input gradients come from ``networks.head_input_grad_sq_norms`` (the chain rule as matrix
+    products), which measured 12% more control steps/s for the whole iteration than 32 backward
+    passes (813 vs 723 at batch 256 on 2 CPU cores, the same process, alternating)."""
     minibatch_size: int = 256
 
 

@@ -78,3 +78,12 @@ def test_physics_ratios_pair_rows_by_batch():
     assert result["rollout"][0]["physics_cost_ratio"] == pytest.approx(1.25)
     assert result["train"][0]["physics_cost_ratio"] == pytest.approx(2.5)
     assert "physics_cost_ratio" not in result["train"][1]  # no physics row at that batch
+
+
+def test_overrides_reach_the_benchmarked_config(data_dir):
+    cfg = bench.BenchConfig(exp="smoke", overrides=("disc.gp_mode=sum_heads", "ppo.epochs=2"))
+    learner, tc = bench._learner(cfg, 4)
+    assert tc.disc.gp_mode == "sum_heads" and tc.ppo.epochs == 2 and tc.ppo.num_envs == 4
+    assert learner.cfg is tc and tc.chunk == 1
+    with pytest.raises(Exception, match="ppo.epoch"):
+        bench._learner(bench.BenchConfig(exp="smoke", overrides=("ppo.epoch=2",)), 4)

@@ -2,9 +2,10 @@
 gradient penalty of the summed heads (the authors' code) instead of one per head (paper Eq. 2),
 which needs 32 backward passes. Everything else, learning rates included, as the paper.
 
-On a 2-core CPU at batch 256, ``make bench BENCH_ARGS="--batches 256 --exp <name>"`` measured a
-full training iteration at 2.9x the physics-only cost with the paper's sizes (469 vs 1379 control
-steps/s) and 1.5x with these (936 vs 1410).
+On 2 CPU cores, ``make bench BENCH_ARGS="--exp <name>"`` measured a full training iteration at
+1.28x the physics-only cost at batch 256 (1569 vs 2000 control steps/s); the paper-sized
+``composite/chest_open+squat`` measured 2.12x (824 vs 1743), and 1.80x with only the summed-head
+penalty (README, Performance).
 """
 import dataclasses
 
