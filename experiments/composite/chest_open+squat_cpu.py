@@ -1,6 +1,7 @@
 """chest_open+squat sized for a CPU: 256-256 policy and critic instead of 1024-512, and the
 gradient penalty of the summed heads (the authors' code) instead of one per head (paper Eq. 2),
-which needs 32 backward passes. Everything else, learning rates included, as the paper.
+which needs the input gradient of each of the 32 heads at every sample. Everything else,
+learning rates included, as the paper.
 
 On 2 CPU cores, ``make bench BENCH_ARGS="--exp <name>"`` measured a full training iteration at
 1.28x the physics-only cost at batch 256 (1569 vs 2000 control steps/s); the paper-sized
