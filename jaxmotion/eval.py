@@ -156,21 +156,21 @@ def reference_sequence(learner: Learner, group: int, num_frames: int) -> tuple[n
     return np.asarray(ms.body_pos), np.asarray(ms.body_quat)
 
 
-def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None,
-             seed: int = 0) -> dict:
-    """The metrics dict (see the module docstring) of ``episodes`` deterministic rollouts."""
-    steps = learner.cfg.env.episode_steps if steps is None else steps
-    ro = rollout(learner, ts, episodes, steps, seed)
-    groups = {}
+def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
+    """The metrics dict (see the module docstring) of a ``rollout``'s episodes."""
+    episodes = ro["alive"].shape[1]
     lengths = ro["alive"].sum(0)  # frames including the initial one
+    groups = {}
     for g, (gcfg, (links, anchor)) in enumerate(zip(learner.cfg.env.groups, learner.env.group_idx)):
+        # One reference for every episode: a shorter one is a prefix of the longest.
+        ref_pos, ref_quat = reference_sequence(learner, g, max(int(lengths.max()), 1))
         errs, errs_w = [], []
         for e in range(episodes):
             n = int(lengths[e])
             if n < 2:
                 continue
             sp, sq = ro["pos"][:n, e], ro["quat"][:n, e]
-            rp, rq = reference_sequence(learner, g, n)
+            rp, rq = ref_pos[:n], ref_quat[:n]
             errs.append(M.dtw_imitation_error(group_frame_positions(sp, sq, links, int(anchor)),
                                               group_frame_positions(rp, rq, links, int(anchor)))[0])
             rw = world_aligned(rp, rq, sp[0], sq[0])
@@ -182,6 +182,13 @@ def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | N
     return {"groups": groups,
             "episode_length_s": float(np.mean((lengths - 1) * learner.env.dt)),
             "fall_rate": float(np.mean(ro["fell"])), "episodes": episodes}
+
+
+def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None,
+             seed: int = 0) -> dict:
+    """The metrics dict (see the module docstring) of ``episodes`` deterministic rollouts."""
+    steps = learner.cfg.env.episode_steps if steps is None else steps
+    return rollout_metrics(learner, rollout(learner, ts, episodes, steps, seed))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -204,7 +211,9 @@ def main(argv: list[str] | None = None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    res = evaluate(learner, ts, args.episodes or cfg.eval_episodes, seed=args.seed)
+    # One rollout serves the metrics and the video / HTML replay (its episode 0).
+    ro = rollout(learner, ts, args.episodes or cfg.eval_episodes, cfg.env.episode_steps, args.seed)
+    res = rollout_metrics(learner, ro)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     print(f"{experiment}: {res['samples']:,} samples, {res['episodes']} episodes, "
           f"episode length {res['episode_length_s']:.2f} s, fall rate {res['fall_rate']:.2f}")
@@ -214,15 +223,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
     # --- visualisation (jaxmotion.render / replay_html / plot) ---
-    if args.video or args.html:
-        # The same rollout as evaluate()'s (same episodes, steps and seed): its episode 0.
-        ro = rollout(learner, ts, res["episodes"], learner.cfg.env.episode_steps, args.seed)
-        if args.video:
-            from jaxmotion.render import render_rollout
-            print(f"video: {render_rollout(learner, ro, args.video)}")
-        if args.html:
-            from jaxmotion.replay_html import write_rollout_html
-            print(f"html: {write_rollout_html(learner, ro, args.html)}")
+    if args.video:
+        from jaxmotion.render import render_rollout
+        print(f"video: {render_rollout(learner, ro, args.video)}")
+    if args.html:
+        from jaxmotion.replay_html import write_rollout_html
+        print(f"html: {write_rollout_html(learner, ro, args.html)}")
     if not args.no_plots:
         from jaxmotion.plot import plot_run
         try:
