@@ -576,7 +576,7 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     ``group``'s reference clip as the ghost (``eval.reference_sequence``, moved rigidly in xy +
     yaw onto the simulation's first root frame as ``eval.world_aligned`` does)."""
     from jaxmotion.eval import reference_sequence
-    from jaxmotion.render import GROUP_PALETTE, align_pose, align_to_start, group_colors
+    from jaxmotion.render import GROUP_PALETTE, align_pose, align_to_start, learner_group_colors
     ch = learner.env.character
     n = int(np.asarray(ro["alive"])[:, episode].sum())
     sp = np.asarray(ro["pos"])[:n, episode]
@@ -585,7 +585,7 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     q, off = align_to_start(rp[:, 0], rq[:, 0], sp[0, 0], sq[0, 0])
     rp, rq = align_pose(q, off, rp, rq)
     names = [g.name for g in learner.cfg.env.groups]
-    colors = group_colors([links for links, _ in learner.env.group_idx])
+    colors = learner_group_colors(learner)
     legend = {name: GROUP_PALETTE[i % len(GROUP_PALETTE)] for i, name in enumerate(names)}
     ref_name = names[group] if names else "reference"
     return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / learner.env.dt,
