@@ -340,3 +340,35 @@ def test_good_objective_weights_are_normalised(synthetic_env):
                       disc=DiscConfig(minibatch_size=8))
     learner = Learner(cfg, env=synthetic_env)
     np.testing.assert_allclose(np.asarray(learner.objective_weights), [0.25, 0.75])
+
+
+@pytest.mark.slow
+def test_eval_cli_reports_and_writes_everything_from_one_rollout(runs, tmp_path, monkeypatch, capsys):
+    """``python -m jaxmotion.eval <run> --json --html [--video]`` on run A: metrics, the replay
+    page, the learning-curve PNGs, and the video where headless GL works; one rollout for all."""
+    from jaxmotion import eval as E
+    from jaxmotion import render as RD
+
+    calls = []
+    real = E.rollout
+    monkeypatch.setattr(E, "rollout", lambda *a, **k: calls.append(a[2:4]) or real(*a, **k))
+    run_dir = runs["a"].run_dir
+    args = [str(run_dir), "--episodes", "2", "--json", str(tmp_path / "m.json"), "--html", str(tmp_path / "r.html")]
+    video = RD.gl_backend() is not None
+    if video:
+        args += ["--video", str(tmp_path / "v.gif")]
+    with jit_enabled():
+        assert E.main(args) == 0
+    assert calls == [(2, runs["cfg"].env.episode_steps)]
+    res = json.loads((tmp_path / "m.json").read_text())
+    assert res["episodes"] == 2 and res["samples"] == 3 * runs["cfg"].samples_per_iteration
+    for g in runs["cfg"].env.groups:
+        m = res["groups"][g.name]
+        assert 0.0 < m["dtw_error_m_mean"] < 2.0 and np.isfinite(m["dtw_error_world_m_mean"])
+    assert 0.0 < res["episode_length_s"] <= runs["cfg"].env.episode_steps * runs["cfg"].env.physics.control_dt + 1e-6
+    assert "jaxmotion replay" in (tmp_path / "r.html").read_text()  # self-containment: test_render
+    assert list(run_dir.glob("plot_*.png"))
+    if video:
+        assert (tmp_path / "v.gif").stat().st_size > 0
+    out = capsys.readouterr().out
+    assert "DTW error" in out and "html:" in out
