@@ -30,7 +30,7 @@ class NormalizerState:
       count: ``[]`` float32 number of samples seen.
       mean: ``[D]`` running mean.
       summed_variance: ``[D]`` sum of squared deviations from the mean (Chan's ``M2``).
-      std: ``[D]`` ``sqrt(summed_variance / count)`` clipped to ``[std_min, std_max]``; 1 before
+      std: ``[D]`` ``sqrt(summed_variance / count + var_eps)``, at most ``std_max``; 1 before
         any sample.
     """
 
@@ -54,7 +54,7 @@ def normalizer_update(
     state: NormalizerState,
     batch: jax.Array,
     mask: jax.Array | None = None,
-    std_min: float = 1e-6,
+    var_eps: float = 1e-5,
     std_max: float = 1e6,
 ) -> NormalizerState:
     """Merges a batch into the running statistics.
@@ -64,7 +64,9 @@ def normalizer_update(
       batch: ``[..., D]`` samples; all leading axes are pooled (e.g. ``[T, B, D]``).
       mask: ``[...]`` optional 0/1 weights of the samples (e.g. valid frames); masked samples are
         ignored. A batch with no valid sample leaves the statistics unchanged.
-      std_min: lower bound of the stored std.
+      var_eps: added to the variance before the square root (the authors' ``var + 1e-5``), so a
+        feature that is constant up to float noise (the torso's offset in the pelvis frame) stays
+        near zero instead of being blown up to unit scale: its std is at least ~3.2e-3.
       std_max: upper bound of the stored std.
 
     Returns:
@@ -89,7 +91,7 @@ def normalizer_update(
     mean = state.mean + delta * (n_b / safe_n)
     m2 = state.summed_variance + m2_b + jnp.square(delta) * (state.count * n_b / safe_n)
 
-    std = jnp.clip(jnp.sqrt(m2 / safe_n), std_min, std_max)
+    std = jnp.minimum(jnp.sqrt(m2 / safe_n + var_eps), std_max)
     std = jnp.where(n > 0, std, state.std)
     return NormalizerState(count=n, mean=mean, summed_variance=m2, std=std)
 

@@ -54,15 +54,21 @@ class EnvConfig:
     groups: tuple[GroupConfig, ...] = (GroupConfig(),)
     episode_steps: int = 300
     """Episode time limit in control steps (300 = 10 s at 30 Hz)."""
-    policy_frames: int = 2
-    """Frames of link state in the policy observation (current plus history)."""
+    policy_frames: int = 4
+    """Frames of link state in the policy observation (current plus history). The paper asks
+    for at least the discriminators' history (t-3 ... t); the authors' code uses 4."""
     early_termination: bool = True
     """End the episode when a body other than the feet touches the ground."""
     contact_grace_steps: int = 2
     """Steps after reset in which ground contact does not end the episode."""
     allowed_contacts: tuple[str, ...] = ("right_foot", "left_foot")
-    action_scale: float = 1.0
-    """PD target = mid-range + action_scale * action * half-range; action ±1 reaches the limits."""
+    action_scale: float = 2.0
+    """PD target = mid-range + action_scale * action * half-range. 2.0 is the authors' code
+    (mid + action * full range: ±0.5 reaches the limits); 1.0 reaches them at ±1."""
+    init_above_ground: bool = True
+    """Lift a reference-state initialisation whose lowest geom would start inside the floor."""
+    init_within_limits: bool = True
+    """Clamp the reference-state initialisation's joint angles to the joint ranges."""
     max_qvel: float = 100.0
     """|qvel| above this counts as unstable physics: the environment is reset."""
 
@@ -105,6 +111,7 @@ class HumanoidEnv:
         self.cfg = cfg
         self.character = character(cfg.physics.sword_shield)
         self.model = sim.mjx_model(cfg.physics)
+        self.physics = sim.physics(cfg.physics)
         ch = self.character
         if not cfg.groups:
             raise ValueError("EnvConfig.groups is empty: at least one body group is needed")
@@ -133,12 +140,16 @@ class HumanoidEnv:
         lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
         self._mid = jnp.asarray((lo + hi) / 2, jnp.float32)
         self._half = jnp.asarray((hi - lo) / 2, jnp.float32)
-        # Geoms whose ground contact ends an episode (all but the allowed bodies' and the floor).
-        m = sim.mj_model(cfg.physics)
-        allowed = {ch.body_index(b) + 1 for b in cfg.allowed_contacts}
-        self._bad_geom = jnp.asarray([(m.geom_bodyid[g] not in allowed) and m.geom_bodyid[g] != 0
-                                      for g in range(m.ngeom)])
+        self._lo, self._hi = jnp.asarray(lo, jnp.float32), jnp.asarray(hi, jnp.float32)
+        # Bodies whose ground contact ends an episode (all but the allowed ones).
+        allowed = {ch.body_index(b) for b in cfg.allowed_contacts}
+        self._bad_body = jnp.asarray([b not in allowed for b in range(ch.num_bodies)])
         self._data0 = mjx.make_data(self.model)
+        m = sim.mj_model(cfg.physics)
+        geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0 and m.geom_type[g] in (2, 3, 6)]
+        self._body_geoms = jnp.asarray(geoms, jnp.int32)
+        self._geom_size = jnp.asarray(m.geom_size[geoms], jnp.float32)
+        self._geom_type = jnp.asarray(m.geom_type[geoms], jnp.int32)
 
     # ---- sizes -------------------------------------------------------------------------
     @property
@@ -163,9 +174,20 @@ class HumanoidEnv:
         clip, t = sample_times(self.init_lib, k, 1)
         times = t[0] - self.dt * jnp.arange(self.hist_len - 1, -1, -1, dtype=jnp.float32)
         ms = sample(self.init_lib, jnp.full_like(times, clip[0], dtype=jnp.int32), times)
-        qpos, qvel = qpos_qvel(jax.tree.map(lambda x: x[-1], ms))
-        data = self._data0.replace(qpos=qpos, qvel=qvel)
-        hist = O.LinkFrames(ms.body_pos, ms.body_quat, ms.body_lin_vel, ms.body_ang_vel)
+        qpos_h, qvel_h = qpos_qvel(ms)
+        if self.cfg.init_within_limits:
+            # Some clips leave the joint ranges (the squat's right hip by up to 75 degrees); started
+            # there, the limit constraint throws the character (10-20% of resets were unstable).
+            qpos_h = qpos_h.at[..., 7:].set(jnp.clip(qpos_h[..., 7:], self._lo, self._hi))
+        if self.cfg.init_above_ground:
+            # Lift the whole window so the lowest body geom of the start pose is not in the floor
+            # (clamped joints or a clip made for another skeleton can put a foot 10 cm deep).
+            lift = jnp.maximum(-self.lowest_point(qpos_h[-1]), 0.0)
+            qpos_h = qpos_h.at[..., 2].add(lift)
+        data = self._data0.replace(qpos=qpos_h[-1], qvel=qvel_h[-1])
+        # The history is what the simulator's kinematics make of the reference poses, so the first
+        # windows after a reset are built exactly like every later one.
+        hist = jax.vmap(self.frames_of)(qpos_h, qvel_h)
         state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng)
         return state, self.policy_obs(state)
 
@@ -187,8 +209,35 @@ class HumanoidEnv:
         keys = jax.random.split(rng, len(self.groups))
         for k, g, lib, (links, anchor) in zip(keys, self.cfg.groups, self.motion_libs, self.group_idx):
             w = sample_windows(lib, k, n, g.frames, self.dt, g.speed_range)
-            out.append(jax.vmap(lambda p, q: O.disc_obs(p, q, links, int(anchor)))(w.body_pos, w.body_quat))
+            # Link poses by forward kinematics of the interpolated joint angles: the poses the
+            # simulator would show for them. Blending the clip's link positions and rotations
+            # separately bends rigid offsets (the torso's in the pelvis frame) by ~1e-5, which a
+            # discriminator can learn to tell from simulated frames.
+            qpos, _ = qpos_qvel(w)
+            pos, quat = jax.vmap(jax.vmap(self.poses_of))(qpos)
+            out.append(jax.vmap(lambda p, q: O.disc_obs(p, q, links, int(anchor)))(pos, quat))
         return tuple(out)
+
+    def lowest_point(self, qpos: jax.Array) -> jax.Array:
+        """Height of the lowest point of the character's spheres, capsules and boxes at ``qpos``."""
+        d = mjx.kinematics(self.model, self._data0.replace(qpos=qpos))
+        z, rot = d.geom_xpos[self._body_geoms, 2], d.geom_xmat[self._body_geoms]
+        size, typ = self._geom_size, self._geom_type
+        axis_z = jnp.abs(rot[:, 2, :])  # |z component| of each geom axis
+        low_sphere = z - size[:, 0]
+        low_capsule = z - size[:, 0] - axis_z[:, 2] * size[:, 1]
+        low_box = z - jnp.sum(axis_z * size, -1)
+        low = jnp.where(typ == 2, low_sphere, jnp.where(typ == 3, low_capsule, low_box))
+        return jnp.min(low)
+
+    def poses_of(self, qpos: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Link positions [nb, 3] and orientations [nb, 4] of generalised positions [nq] (FK)."""
+        d = mjx.kinematics(self.model, self._data0.replace(qpos=qpos))
+        return d.xpos[1:], d.xquat[1:]
+
+    def frames_of(self, qpos: jax.Array, qvel: jax.Array) -> O.LinkFrames:
+        """The link frames the simulator reports for a state (qpos [nq], qvel [nv])."""
+        return self.link_frames(self.kinematics(self._data0.replace(qpos=qpos, qvel=qvel)))
 
     def link_frames(self, data: mjx.Data) -> O.LinkFrames:
         """World-frame link states of ``data`` (its kinematics must be current)."""
@@ -213,17 +262,14 @@ class HumanoidEnv:
         """The action whose PD target is ``target`` [.., n_dof] (inverse of ``pd_target``)."""
         return (target - self._mid) / (self.cfg.action_scale * self._half)
 
-    def step(self, state: EnvState, action: jax.Array, model: mjx.Model | None = None
-             ) -> tuple[EnvState, StepOut]:
-        """One control step; ``model`` overrides the env's MJX model (same shapes, e.g. other gains)."""
+    def step(self, state: EnvState, action: jax.Array) -> tuple[EnvState, StepOut]:
+        """One control step on the configured physics backend."""
         cfg = self.cfg
-        model = self.model if model is None else model
-        data = sim.pd_step(model, state.data, self.pd_target(action), cfg.physics.substeps)
-        # The last mjx.step integrated after its collision pass, so contacts are one substep old;
-        # kinematics is recomputed at the new state for the observations.
-        contact = data._impl.contact
-        touching = (contact.dist < 0.0) & self._bad_geom[jnp.max(contact.geom, axis=-1)]
-        data = self.kinematics(data, model)
+        data, ground = self.physics.step(state.data, self.pd_target(action))
+        # Contacts are those of the last substep's collision pass (one substep old); kinematics
+        # is recomputed at the new state for the observations, in JAX for every backend.
+        touching = ground & self._bad_body
+        data = self.kinematics(data)
         frame = self.link_frames(data)
         hist = jax.tree.map(lambda h, f: jnp.concatenate([h[1:], f[None]], 0), state.hist, frame)
         steps = state.steps + 1

@@ -21,7 +21,8 @@ import jax.numpy as jnp
 import mujoco
 from mujoco import mjx
 
-from jaxmotion.physics.character import Character, character
+from jaxmotion.physics import backends
+from jaxmotion.physics.character import Character, build_mjcf, character
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,6 +39,12 @@ class PhysicsConfig:
     """Use the 17-body sword-and-shield character (31 DoF) instead of the 15-body humanoid."""
     impl: str = "auto"
     """MJX implementation: 'jax', 'warp' (NVIDIA GPUs only) or 'auto' (warp where available)."""
+    backend: str = "auto"
+    """Physics engine: 'mjx', 'mujoco' (MuJoCo C through a host callback inside the compiled
+    loop, threaded over the batch) or 'auto' (MuJoCo C on a CPU, MJX on an accelerator); see
+    ``physics/backends.py``."""
+    threads: int = 0
+    """Threads of the MuJoCo C backend's pool (0: one per CPU core)."""
 
     @property
     def substeps(self) -> int:
@@ -61,6 +68,8 @@ def mj_model(cfg: PhysicsConfig) -> mujoco.MjModel:
 
 
 def _impl(cfg: PhysicsConfig) -> str:
+    if backends.resolve_backend(cfg.backend) == "mujoco":
+        return "jax"  # MJX only computes kinematics for the observations then
     if cfg.impl != "auto":
         return cfg.impl
     if jax.default_backend() == "gpu":
@@ -76,6 +85,18 @@ def _impl(cfg: PhysicsConfig) -> str:
 def mjx_model(cfg: PhysicsConfig) -> mjx.Model:
     """The MJX model (device arrays) for ``cfg``; cached because it is immutable."""
     return mjx.put_model(mj_model(cfg), impl=_impl(cfg))
+
+
+@functools.lru_cache(maxsize=8)
+def physics(cfg: PhysicsConfig):
+    """The physics backend object of ``cfg`` (``backends.MJXPhysics`` or ``MujocoPhysics``)."""
+    return backends.make_physics(cfg.backend, mj_model(cfg), build_mjcf(cfg.sword_shield), mjx_model(cfg),
+                                 cfg.substeps, cfg.threads or None)
+
+
+def backend_name(cfg: PhysicsConfig) -> str:
+    """The backend ``cfg`` resolves to on this machine ('mjx' or 'mujoco')."""
+    return backends.resolve_backend(cfg.backend)
 
 
 def pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) -> mjx.Data:
