@@ -10,7 +10,10 @@ bench`` runs all three parts at batches 64, 256 and 1024 (and 4096, 16384 on a G
   same initial states on the same cores with ``mujoco.rollout`` (native thread pool), falling back
   to a Python loop over ``mj_step`` when that is unavailable (``mujoco_c_method`` says which).
   Both are reported in control steps per second (one control step = ``substeps`` physics steps).
-* **rollout**: ``Learner.rollout`` (``horizon`` control steps of policy + env), jitted, donated.
+  ``callback_control_steps_per_s`` is the MuJoCo C backend as the env calls it (``jax.pure_callback``
+  into ``mujoco.rollout`` from a jitted scan).
+* **rollout**: ``Learner.rollout`` (``horizon`` control steps of policy + env), jitted, donated;
+  one row per physics backend (``--backends``, default ``mjx,mujoco``; each row's ``backend``).
 * **train**: ``make_train_chunk`` (``--iters`` whole iterations in one jitted scan, default 1:
   the scan adds nothing per iteration, and one iteration at batch 1024 already takes seconds).
 
@@ -48,6 +51,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxmotion.physics import sim
+from jaxmotion.data import cli_errors
 
 ROOT_HEIGHT = 0.89
 """Standing root height (m) of the humanoid with all joint angles 0."""
@@ -76,6 +80,8 @@ class BenchConfig:
     overrides: tuple[str, ...] = ()
     """``key=value`` overrides of the experiment's config, as ``make train ARGS=...`` takes."""
     physics: sim.PhysicsConfig = sim.PhysicsConfig()
+    backends: tuple[str, ...] = ("mjx", "mujoco")
+    """Physics backends of the rollout and train rows (each row says its ``backend``)."""
 
 
 # ---- helpers ------------------------------------------------------------------------------
@@ -197,6 +203,30 @@ def prepare_mjx(cfg: BenchConfig, qpos: np.ndarray) -> tuple[Timed, dict[str, fl
     return timed, {"compile_s": compile_s}
 
 
+def prepare_callback(cfg: BenchConfig, qpos: np.ndarray) -> tuple[Timed, dict[str, float]]:
+    """The MuJoCo C backend as the env uses it: ``jax.pure_callback`` into ``mujoco.rollout``
+    from a jitted ``lax.scan``, the same calls and initial poses as ``prepare_mjx``."""
+    from jaxmotion.physics import backends
+    from jaxmotion.physics.character import build_mjcf
+
+    pc = cfg.physics
+    phys = backends.MujocoPhysics(build_mjcf(pc.sword_shield), sim.mj_model(pc), sim.mjx_model(pc),
+                                  pc.substeps, num_cpus())
+    step = jax.vmap(phys.step, in_axes=(0, None))
+
+    def run(data, target):
+        return jax.lax.scan(lambda d, _: (step(d, target)[0], None), data, None, length=cfg.steps)[0]
+
+    d0 = mjx.make_data(sim.mjx_model(pc))
+    data = jax.vmap(lambda q: d0.replace(qpos=q))(jnp.asarray(qpos, d0.qpos.dtype))
+    target = jnp.zeros((phys.mj.nu,), jnp.float32)
+    compiled, _ = _compile(run, data, target, donate_argnums=0)
+    fresh = lambda: jax.tree.map(jnp.copy, data)
+    timed = Timed(lambda d: compiled(d, target), None, qpos.shape[0] * cfg.steps, fresh)
+    jax.block_until_ready(timed.fn(fresh()))  # warm-up
+    return timed, {}
+
+
 def prepare_mujoco_c(cfg: BenchConfig, qpos: np.ndarray, stack: contextlib.ExitStack) -> tuple[Timed, dict[str, Any]]:
     """MuJoCo C from the same initial poses, ctrl held at 0, on all usable CPUs.
 
@@ -243,12 +273,13 @@ def prepare_mujoco_c(cfg: BenchConfig, qpos: np.ndarray, stack: contextlib.ExitS
 
 
 # ---- rollout and train --------------------------------------------------------------------
-def _learner(cfg: BenchConfig, batch: int):
-    """A ``Learner`` for ``cfg.exp`` with ``num_envs = batch`` (minibatches shrunk to fit)."""
+def _learner(cfg: BenchConfig, batch: int, backend: str = "auto"):
+    """A ``Learner`` for ``cfg.exp`` with ``num_envs = batch`` (minibatches shrunk to fit) on
+    physics ``backend``."""
     from jaxmotion import config as C
     from jaxmotion.trainer import Learner
 
-    tc = C.apply_overrides(C.load_experiment(cfg.exp), cfg.overrides)
+    tc = C.apply_overrides(C.load_experiment(cfg.exp), cfg.overrides + (f"env.physics.backend={backend}",))
     n = batch * tc.ppo.horizon
     fit = lambda mb: math.gcd(n, mb)  # the largest size <= mb that divides the sample count
     tc = dataclasses.replace(
@@ -259,9 +290,9 @@ def _learner(cfg: BenchConfig, batch: int):
     return Learner(tc), tc
 
 
-def prepare_rollout(cfg: BenchConfig, batch: int) -> tuple[Timed, dict[str, float]]:
+def prepare_rollout(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, dict[str, float]]:
     """``Learner.rollout`` (policy + env, ``horizon`` control steps per call), state donated."""
-    learner, tc = _learner(cfg, batch)
+    learner, tc = _learner(cfg, batch, backend)
     ts = learner.init(jax.random.PRNGKey(cfg.seed))
     compiled, compile_s = _compile(learner.rollout, ts, donate_argnums=0)
     fn = lambda s: compiled(s[0])
@@ -269,11 +300,11 @@ def prepare_rollout(cfg: BenchConfig, batch: int) -> tuple[Timed, dict[str, floa
     return Timed(fn, state, batch * tc.ppo.horizon), {"compile_s": compile_s}
 
 
-def prepare_train(cfg: BenchConfig, batch: int) -> tuple[Timed, dict[str, float]]:
+def prepare_train(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, dict[str, float]]:
     """Whole training iterations (``make_train_chunk``, ``chunk`` of them per call), donated."""
     from jaxmotion.trainer import make_mesh, make_train_chunk, shard_state
 
-    learner, tc = _learner(cfg, batch)
+    learner, tc = _learner(cfg, batch, backend)
     mesh = make_mesh()
     ts = shard_state(learner.init(jax.random.PRNGKey(cfg.seed)), mesh)
     t0 = time.perf_counter()
@@ -296,7 +327,7 @@ def bench_batch(cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str
     fails to build is recorded in ``errors`` (physics failures are raised).
 
     Returns:
-        ``{part: row}`` for the parts that ran.
+        ``{part: [rows]}`` for the parts that ran (rollout and train: one row per backend).
     """
     rows: dict[str, dict[str, Any]] = {}
     timers: dict[str, Timed] = {}
@@ -309,9 +340,18 @@ def bench_batch(cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str
                     timers["physics"], rows["physics"] = prepare_mjx(cfg, qpos)
                     timers["mujoco_c"], info = prepare_mujoco_c(cfg, qpos, stack)
                     rows["physics"].update(info)
+                    timers["callback"], _ = prepare_callback(cfg, qpos)
                 else:
-                    timers[part], rows[part] = (prepare_rollout if part == "rollout" else prepare_train)(cfg, batch)
-            except Exception as err:  # noqa: BLE001 - later parts and the JSON still get written
+                    for be in cfg.backends:
+                        key = f"{part}:{be}"
+                        try:
+                            prep = prepare_rollout if part == "rollout" else prepare_train
+                            timers[key], rows[key] = prep(cfg, batch, be)
+                            rows[key]["backend"] = be
+                        except Exception as err:  # noqa: BLE001 - later parts and the JSON still get written
+                            errors[key] = f"{type(err).__name__}: {err}"
+                            log(f"{key}: FAILED: {errors[key]}")
+            except Exception as err:  # noqa: BLE001
                 if part == "physics":
                     raise
                 errors[part] = f"{type(err).__name__}: {err}"
@@ -327,24 +367,36 @@ def bench_batch(cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str
             "batch": batch, "mjx_control_steps_per_s": timers["physics"].rate,
             "mjx_root_height": float(jnp.mean(timers["physics"].state.qpos[:, 2])),
             "mujoco_c_control_steps_per_s": timers["mujoco_c"].rate,
-            "mujoco_c_root_height": float(np.mean(timers["mujoco_c"].state))})
-    for part in ("rollout", "train"):
-        if part in rows:
-            rows[part].update({"batch": batch, "control_steps_per_s": timers[part].rate, "peak_mem_mb": mem})
+            "mujoco_c_root_height": float(np.mean(timers["mujoco_c"].state)),
+            "callback_control_steps_per_s": timers["callback"].rate})
+    out: dict[str, list[dict[str, Any]]] = {}
+    for key, row in rows.items():
+        if key == "physics":
+            out["physics"] = [row]
+            continue
+        row.update({"batch": batch, "control_steps_per_s": timers[key].rate, "peak_mem_mb": mem})
+        out.setdefault(key.split(":")[0], []).append(row)
     summary = ", ".join(f"{k} {t.rate:.0f}/s" for k, t in timers.items())
     log(f"  batch {batch}: {summary}")
-    return rows
+    return out
 
 
 # ---- report -------------------------------------------------------------------------------
 def add_physics_ratios(result: dict[str, Any]) -> None:
-    """Sets ``physics_cost_ratio`` (physics rate / this rate) on rollout and train rows whose
-    batch also has a physics row: the cost of a control step relative to physics alone."""
-    physics = {r["batch"]: r["mjx_control_steps_per_s"] for r in result.get("physics", [])}
+    """On rollout and train rows whose batch also has a physics row: ``physics_cost_ratio``, the
+    cost of a control step relative to the same backend's physics alone (MJX, or the C backend
+    through its callback), and ``fraction_of_bare_c``, this rate over MuJoCo C's bare rollout."""
+    by_batch = {r["batch"]: r for r in result.get("physics", [])}
     for part in ("rollout", "train"):
         for row in result.get(part, []):
-            if row["batch"] in physics and row.get("control_steps_per_s"):
-                row["physics_cost_ratio"] = physics[row["batch"]] / row["control_steps_per_s"]
+            phys = by_batch.get(row["batch"])
+            if phys is None or not row.get("control_steps_per_s"):
+                continue
+            key = "callback_control_steps_per_s" if row.get("backend") == "mujoco" else "mjx_control_steps_per_s"
+            if phys.get(key):
+                row["physics_cost_ratio"] = phys[key] / row["control_steps_per_s"]
+            if phys.get("mujoco_c_control_steps_per_s"):
+                row["fraction_of_bare_c"] = row["control_steps_per_s"] / phys["mujoco_c_control_steps_per_s"]
 
 
 
@@ -366,12 +418,15 @@ def report(result: dict[str, Any]) -> str:
                 f"C: {rows[0]['mujoco_c_method']})",
                 format_table(rows, [("batch", "batch", "d"), ("mjx", "mjx_control_steps_per_s", ".0f"),
                                     ("mujoco C", "mujoco_c_control_steps_per_s", ".0f"), ("C/mjx", "ratio", ".1f"),
+                                    ("C callback", "callback_control_steps_per_s", ".0f"),
                                     ("compile s", "compile_s", ".1f"), ("mjx root z", "mjx_root_height", ".3f")])]
     for part in ("rollout", "train"):
         if result[part]:
             out += ["", f"{part} (control steps/s; cost/physics = time per control step over physics alone; exp {result['settings']['exp']})",
-                    format_table(result[part], [("batch", "batch", "d"), ("steps/s", "control_steps_per_s", ".0f"),
+                    format_table(result[part], [("batch", "batch", "d"), ("backend", "backend", "s"),
+                                                ("steps/s", "control_steps_per_s", ".0f"),
                                                 ("cost/physics", "physics_cost_ratio", ".2f"),
+                                                ("of bare C", "fraction_of_bare_c", ".2f"),
                                                 ("compile s", "compile_s", ".1f"), ("peak MB", "peak_mem_mb", ".0f")])]
     for part, msg in result.get("errors", {}).items():
         out += ["", f"{part}: FAILED: {msg}"]
@@ -400,8 +455,8 @@ def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, A
             faulthandler.dump_traceback_later(timeout, exit=True)
         try:
             todo = [p for p in PARTS if p in parts and p not in result["errors"]]
-            for part, row in bench_batch(cfg, batch, todo, result["errors"], log).items():
-                result[part].append(row)
+            for part, rows in bench_batch(cfg, batch, todo, result["errors"], log).items():
+                result[part].extend(rows)
         finally:
             faulthandler.cancel_dump_traceback_later()
     add_physics_ratios(result)
@@ -410,6 +465,7 @@ def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, A
     return result
 
 
+@cli_errors
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m jaxmotion.bench", description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true", help="tiny run for tests: batches 1,4, 2 steps, no timing floor")
@@ -420,6 +476,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--exp", default=None, help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)")
     p.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                    help="config overrides for rollout/train, e.g. --set disc.gp_mode=sum_heads")
+    p.add_argument("--backends", default="mjx,mujoco",
+                   help="physics backends of the rollout and train rows (default: both)")
     p.add_argument("--iters", type=int, default=1, help="train iterations per compiled call (0: the experiment's chunk)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--rounds", type=int, help="alternating timing rounds per batch size (default 3, quick 1)")
@@ -443,7 +501,8 @@ def main(argv: list[str] | None = None) -> int:
     cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
                       seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
                       exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed,
-                      rounds=a.rounds or (1 if a.quick else 3), overrides=tuple(a.set))
+                      rounds=a.rounds or (1 if a.quick else 3), overrides=tuple(a.set),
+                      backends=tuple(b.strip() for b in a.backends.split(",") if b.strip()))
     result = run(cfg, parts, a.timeout)
     print(report(result))
     with open(a.out, "w") as f:

@@ -20,10 +20,15 @@ from jaxmotion import config as C
 CONFIG_FILE = "config.json"
 
 
-def write_config(run_dir: Path, experiment: str, cfg: Any) -> None:
+def write_config(run_dir: Path, experiment: str, cfg: Any, resolved: dict | None = None) -> None:
+    """Writes ``config.json``; ``resolved`` records what the config left to the machine (e.g. the
+    physics backend that ``auto`` chose), for the reader, not for rebuilding."""
     run_dir.mkdir(parents=True, exist_ok=True)
     tmp = run_dir / (CONFIG_FILE + ".tmp")
-    tmp.write_text(json.dumps({"experiment": experiment, "config": C.to_dict(cfg)}, indent=2))
+    doc = {"experiment": experiment, "config": C.to_dict(cfg)}
+    if resolved:
+        doc["resolved"] = resolved
+    tmp.write_text(json.dumps(doc, indent=2))
     tmp.replace(run_dir / CONFIG_FILE)
 
 

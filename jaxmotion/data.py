@@ -17,3 +17,24 @@ def resolve(path: str | os.PathLike) -> Path:
     if p.is_absolute() or p.exists():
         return p
     return data_dir() / p
+
+
+def cli_errors(main):
+    """Wraps a CLI ``main``: a motion file that is missing or malformed ends the command with one
+    clear line (and how to point ``JAXMOTION_DATA`` at the clips) and exit status 2, not a
+    traceback."""
+    import functools
+    import sys
+
+    @functools.wraps(main)
+    def wrapped(*args, **kwargs):
+        from jaxmotion.motion.loaders import MotionFileError
+        try:
+            return main(*args, **kwargs)
+        except MotionFileError as e:
+            print(f"error: {e}", file=sys.stderr)
+            print(f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); "
+                  f"point it at the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`.",
+                  file=sys.stderr)
+            return 2
+    return wrapped

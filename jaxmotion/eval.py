@@ -37,6 +37,7 @@ from jaxmotion.envs import observations as O
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import MotionState, sample
 from jaxmotion.trainer import Learner, TrainConfig, TrainState
+from jaxmotion.data import cli_errors
 
 
 def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
@@ -191,6 +192,7 @@ def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | N
     return rollout_metrics(learner, rollout(learner, ts, episodes, steps, seed))
 
 
+@cli_errors
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m jaxmotion.eval", description=__doc__.split("\n")[0])
     p.add_argument("run", type=Path, help="run folder (runs/<experiment>/<timestamp>)")

@@ -24,6 +24,7 @@ import numpy as np
 from jaxmotion import checkpoint as ckpt
 from jaxmotion import config as C
 from jaxmotion.trainer import Learner, TrainConfig, TrainState, make_mesh, make_train_chunk, shard_state
+from jaxmotion.data import cli_errors
 
 
 @dataclasses.dataclass
@@ -99,10 +100,15 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         # A resumed run keeps its saved settings; only the length and bookkeeping may change.
         cfg = dataclasses.replace(saved, iterations=cfg.iterations, resume=cfg.resume,
                                   checkpoint_every=cfg.checkpoint_every)
+    learner = Learner(cfg)  # before the run folder exists: bad clips or settings leave nothing behind
     run_dir = Path(run_dir) if run_dir is not None else new_run_dir(experiment)
+    phys = learner.env.physics
+    backend = {"backend": phys.name, "device": jax.default_backend(),
+               **({"threads": phys.nthread} if phys.name == "mujoco" else {})}
+    if progress:
+        print(f"physics backend: {phys.name} ({', '.join(f'{k} {v}' for k, v in backend.items() if k != 'backend')})")
     if not cfg.resume:
-        ckpt.write_config(run_dir, experiment, dataclasses.replace(cfg, resume=""))
-    learner = Learner(cfg)
+        ckpt.write_config(run_dir, experiment, dataclasses.replace(cfg, resume=""), resolved={"physics": backend})
     mesh = make_mesh()
     if cfg.ppo.num_envs % mesh.size:
         raise ValueError(f"num_envs ({cfg.ppo.num_envs}) must be divisible by the device count ({mesh.size})")
@@ -167,6 +173,7 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
     return RunResult(run_dir=run_dir, state=ts, metrics=history)
 
 
+@cli_errors
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if not argv or argv[0] in ("-h", "--help"):

@@ -240,7 +240,8 @@ class Learner:
         step = jax.vmap(self.env.step)
         if mesh is None or mesh.size == 1:
             return step
-        return jax.shard_map(step, mesh=mesh, in_specs=(P("data"), P("data")), out_specs=P("data"))
+        return jax.shard_map(step, mesh=mesh, in_specs=(P("data"), P("data")), out_specs=P("data"),
+                             check_vma=False)
 
     def rollout(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, Transition]:
         """Unrolls the policy for ``horizon`` control steps in every environment."""
@@ -322,15 +323,10 @@ class Learner:
         pc = self.cfg.ppo
         if not pc.multi_objective:
             rewards = (rewards * self.reward_weights).sum(-1, keepdims=True)
-        rewards = jnp.where(traj.terminated[..., None], pc.terminate_reward, rewards)
         values = self.values(ts, traj.obs)
-        next_values = self.values(ts, traj.final_obs)
-        term = traj.terminated.astype(jnp.float32)
-        trunc = traj.truncated.astype(jnp.float32)
-        if pc.absorbing_termination:
-            # Bootstrap a fall from the absorbing state's value and cut the trace there.
-            next_values = jnp.where(traj.terminated[..., None], pc.terminate_reward / (1.0 - pc.gamma), next_values)
-            term, trunc = jnp.zeros_like(term), jnp.maximum(term, trunc)
+        rewards, next_values, term, trunc = G.apply_termination(
+            rewards, self.values(ts, traj.final_obs), traj.terminated, traj.truncated,
+            pc.terminate_reward, pc.gamma, pc.absorbing_termination)
         adv, returns = G.compute_gae(rewards, values, next_values, term, trunc, pc.gamma, pc.lam)
         metrics = {}
         if pc.popart:

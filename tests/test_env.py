@@ -13,7 +13,8 @@ from conftest import jit_enabled
 from jaxmotion.envs import observations as O
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip, qpos_qvel, sample
-from jaxmotion.physics import sim
+from jaxmotion.physics import backends, sim
+from jaxmotion.physics.character import build_mjcf
 
 B = 3
 
@@ -39,42 +40,48 @@ def env():
 def fns(env):
     with jit_enabled():
         reset = jax.jit(jax.vmap(env.reset))
-        step = jax.jit(jax.vmap(env.step, in_axes=(0, 0, None)))
+        step = jax.jit(jax.vmap(env.step))
         kin = jax.jit(env.kinematics)
     return reset, step, kin
 
 
-def _zero_gain_model(env):
+def _zero_gain_env(env):
+    """The same env on a physics backend whose servo has no gains."""
     m = sim.mj_model(env.cfg.physics)
     m.actuator_gainprm[:, 0] = 0
     m.actuator_biasprm[:, 1:3] = 0
-    return sim.mjx.put_model(m)
+    phys = backends.make_physics(env.cfg.physics.backend, m, build_mjcf(False), sim.mjx.put_model(m),
+                                 env.cfg.physics.substeps)
+    return HumanoidEnv(env.cfg, motion_libs=env.motion_libs, init_lib=env.init_lib, physics=phys)
 
 
-def _run(fns, env, model, key, actions):
+def _run(fns, env, key, actions):
     reset, step, _ = fns
     with jit_enabled():
         state, obs = reset(jax.random.split(key, B))
         outs, zs = [], []
         for a in actions:
-            state, out = step(state, a, model)
+            state, out = step(state, a)
             outs.append(out)
             zs.append(state.data.qpos[:, 2])
     return state, obs, outs, jnp.stack(zs)
 
 
 def test_sizes(env):
-    assert env.obs_size == 2 * 15 * 15
+    assert env.obs_size == 4 * 15 * 15
     assert env.disc_obs_sizes() == (5 * 8 * 9, 5 * 7 * 9)
     assert env.cfg.physics.substeps == 4
 
 
 def test_standing_holds_for_2s_and_zero_gains_fall(env, fns):
     hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (60, B, 28))
-    _, _, outs, z = _run(fns, env, env.model, jax.random.PRNGKey(0), hold)
+    _, _, outs, z = _run(fns, env, jax.random.PRNGKey(0), hold)
     assert not any(bool(o.terminated.any()) for o in outs)
     assert float(z.min()) > 0.8, "the PD servo should hold the standing pose for 2 s"
-    _, _, outs, z = _run(fns, env, _zero_gain_model(env), jax.random.PRNGKey(0), hold)
+    zero = _zero_gain_env(env)
+    with jit_enabled():
+        zfns = (jax.jit(jax.vmap(zero.reset)), jax.jit(jax.vmap(zero.step)), None)
+    _, _, outs, z = _run(zfns, zero, jax.random.PRNGKey(0), hold)
     fell = jnp.stack([o.terminated for o in outs])
     assert bool(fell.any(0).all()), "without gains every character should fall and terminate"
     assert not bool(jnp.stack([o.unstable for o in outs]).any())
@@ -82,7 +89,7 @@ def test_standing_holds_for_2s_and_zero_gains_fall(env, fns):
 
 def test_time_limit_truncates_and_resets(env, fns):
     hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (71, B, 28))
-    state, _, outs, _ = _run(fns, env, env.model, jax.random.PRNGKey(3), hold)
+    state, _, outs, _ = _run(fns, env, jax.random.PRNGKey(3), hold)
     trunc = jnp.stack([o.truncated for o in outs])
     assert bool(trunc[69].all()) and not bool(trunc[:69].any())
     assert int(state.steps[0]) == 1  # reset at step 70, then one more step
@@ -90,8 +97,8 @@ def test_time_limit_truncates_and_resets(env, fns):
 
 def test_reset_step_deterministic_finite(env, fns):
     acts = 0.5 * jax.random.normal(jax.random.PRNGKey(1), (20, B, 28))
-    s1, o1, out1, _ = _run(fns, env, env.model, jax.random.PRNGKey(2), acts)
-    s2, o2, out2, _ = _run(fns, env, env.model, jax.random.PRNGKey(2), acts)
+    s1, o1, out1, _ = _run(fns, env, jax.random.PRNGKey(2), acts)
+    s2, o2, out2, _ = _run(fns, env, jax.random.PRNGKey(2), acts)
     np.testing.assert_array_equal(o1, o2)
     for a, b in zip(jax.tree.leaves(s1), jax.tree.leaves(s2)):
         np.testing.assert_array_equal(a, b)
@@ -109,8 +116,8 @@ def test_nan_physics_resets_only_that_env(env, fns):
         state, _ = reset(jax.random.split(jax.random.PRNGKey(4), B))
         bad = state.replace(data=state.data.replace(qvel=state.data.qvel.at[1, 10].set(jnp.nan)))
         hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (B, 28))
-        new, out = step(bad, hold, env.model)
-        ref, ref_out = step(state, hold, env.model)
+        new, out = step(bad, hold)
+        ref, ref_out = step(state, hold)
     assert bool(out.unstable[1]) and bool(out.terminated[1]) and not bool(out.unstable[jnp.array([0, 2])].any())
     assert all(bool(jnp.isfinite(x).all()) for x in jax.tree.leaves((new, out)))
     assert int(new.steps[1]) == 0  # was reset

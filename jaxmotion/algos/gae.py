@@ -101,3 +101,26 @@ def compute_gae(
     _, advantages = jax.lax.scan(step, init, (deltas, trace_decay), reverse=True)
     returns = advantages + values
     return jax.lax.stop_gradient(advantages), jax.lax.stop_gradient(returns)
+
+
+def apply_termination(rewards: jax.Array, next_values: jax.Array, terminated: jax.Array,
+                      truncated: jax.Array, terminate_reward: float, gamma: float,
+                      absorbing: bool) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+    """How a terminating step (a fall) enters GAE; returns (rewards, next_values, term, trunc).
+
+    Every objective is paid ``terminate_reward`` on the terminating step. With ``absorbing``, the
+    fall leads to an absorbing state that keeps paying it, so its value
+    ``terminate_reward / (1 - gamma)`` is bootstrapped and the trace is cut there (passed on as a
+    truncation); a ``terminate_reward`` below every reward the objectives can pay then makes a
+    fall always lower the return. Without it (the authors' code), the value after the fall is 0.
+
+    Args:
+      rewards, next_values: ``[T, B, K]``. terminated, truncated: ``[T, B]`` bool.
+    """
+    rewards = jnp.where(terminated[..., None], terminate_reward, rewards)
+    term = terminated.astype(jnp.float32)
+    trunc = truncated.astype(jnp.float32)
+    if absorbing:
+        next_values = jnp.where(terminated[..., None], terminate_reward / (1.0 - gamma), next_values)
+        term, trunc = jnp.zeros_like(term), jnp.maximum(term, trunc)
+    return rewards, next_values, term, trunc

@@ -1,4 +1,7 @@
-"""The humanoid environment on MJX: reference-state init, PD control, falls, discriminator views.
+"""The humanoid environment: reference-state init, PD control, falls, discriminator views.
+
+Physics runs on the backend ``cfg.physics.backend`` names (``physics/backends.py``: MJX, or MuJoCo
+C inside the compiled loop); observations are computed in JAX from ``qpos``/``qvel`` either way.
 
 ``HumanoidEnv(cfg)`` holds static things (MJX model, motion libraries, index arrays); its
 ``reset(rng)`` and ``step(state, action)`` are pure functions of an ``EnvState`` pytree, made to be
@@ -107,11 +110,12 @@ class HumanoidEnv:
     """Pure-functional humanoid imitation environment (see module docstring)."""
 
     def __init__(self, cfg: EnvConfig, motion_libs: Sequence[MotionLib] | None = None,
-                 init_lib: MotionLib | None = None):
+                 init_lib: MotionLib | None = None, physics=None):
+        """``physics`` replaces the backend that ``cfg.physics`` names (e.g. one with other gains)."""
         self.cfg = cfg
         self.character = character(cfg.physics.sword_shield)
         self.model = sim.mjx_model(cfg.physics)
-        self.physics = sim.physics(cfg.physics)
+        self.physics = sim.physics(cfg.physics) if physics is None else physics
         ch = self.character
         if not cfg.groups:
             raise ValueError("EnvConfig.groups is empty: at least one body group is needed")

@@ -105,12 +105,16 @@ class MujocoPhysics:
 
     name = "mujoco"
 
-    def __init__(self, mj_xml: str, opt_from: mujoco.MjModel, model: mjx.Model, substeps: int,
+    def __init__(self, mj_xml: str, params_from: mujoco.MjModel, model: mjx.Model, substeps: int,
                  nthread: int | None = None):
         m = _with_ground_sensors(mj_xml)
-        m.opt.timestep = opt_from.opt.timestep
-        m.opt.iterations = opt_from.opt.iterations
-        m.opt.ls_iterations = opt_from.opt.ls_iterations
+        # Settings and servo gains come from ``params_from`` (the same structure, maybe edited).
+        m.opt.timestep = params_from.opt.timestep
+        m.opt.iterations = params_from.opt.iterations
+        m.opt.ls_iterations = params_from.opt.ls_iterations
+        for f in ("actuator_gainprm", "actuator_biasprm", "actuator_forcerange", "dof_damping",
+                  "dof_armature", "geom_friction", "body_mass"):
+            getattr(m, f)[:] = getattr(params_from, f)
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.mj = m
         self.model = model
