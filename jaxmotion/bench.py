@@ -290,6 +290,17 @@ def _learner(cfg: BenchConfig, batch: int, backend: str = "auto"):
     return Learner(tc), tc
 
 
+def check_clips(cfg: BenchConfig) -> None:
+    """Loads every clip of the benchmarked experiment (raises ``MotionFileError`` if one is bad)."""
+    from jaxmotion import config as C
+    from jaxmotion.motion.loaders import load_clips
+
+    env = C.apply_overrides(C.load_experiment(cfg.exp), cfg.overrides).env
+    for paths in [env.init_motions] + [g.motions for g in env.groups]:
+        if paths:
+            load_clips(paths)
+
+
 def prepare_rollout(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, dict[str, float]]:
     """``Learner.rollout`` (policy + env, ``horizon`` control steps per call), state donated."""
     learner, tc = _learner(cfg, batch, backend)
@@ -503,6 +514,8 @@ def main(argv: list[str] | None = None) -> int:
                       exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed,
                       rounds=a.rounds or (1 if a.quick else 3), overrides=tuple(a.set),
                       backends=tuple(b.strip() for b in a.backends.split(",") if b.strip()))
+    if {"rollout", "train"} & set(parts):
+        check_clips(cfg)  # a missing clip is one clear line before anything compiles
     result = run(cfg, parts, a.timeout)
     print(report(result))
     with open(a.out, "w") as f:

@@ -372,3 +372,28 @@ def test_eval_cli_reports_and_writes_everything_from_one_rollout(runs, tmp_path,
         assert (tmp_path / "v.gif").stat().st_size > 0
     out = capsys.readouterr().out
     assert "DTW error" in out and "html:" in out
+
+
+@pytest.mark.parametrize("cli", ["train", "eval", "bench"])
+def test_cli_without_clips_prints_one_clear_line(cli, tmp_path, monkeypatch, capsys):
+    """No clips at $JAXMOTION_DATA: one error line naming the file, how to point JAXMOTION_DATA at
+    the clips, a non-zero exit, and no traceback (nor a run folder left behind)."""
+    from jaxmotion import bench, eval as E, train as T
+    from jaxmotion import checkpoint as ckpt
+    from jaxmotion import config as C
+
+    monkeypatch.setenv("JAXMOTION_DATA", str(tmp_path / "nowhere"))
+    monkeypatch.chdir(tmp_path)
+    if cli == "train":
+        rc = T.main(["composite/chest_open+squat_cpu"])
+    elif cli == "bench":
+        rc = bench.main(["--parts", "train", "--exp", "composite/chest_open+squat_cpu"])
+    else:
+        run = tmp_path / "run"
+        ckpt.write_config(run, "composite/chest_open+squat_cpu", C.load_experiment("composite/chest_open+squat_cpu"))
+        rc = E.main([str(run)])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert "nowhere/compositemotion/gym/" in err and "no such file" in err and "JAXMOTION_DATA" in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "runs").exists()
