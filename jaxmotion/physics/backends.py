@@ -70,10 +70,15 @@ class MJXPhysics:
         """Holds ``target`` for ``substeps`` MJX steps; returns (data, body ground contacts).
 
         The contacts are those of the last step's collision pass (one substep old)."""
-        data = data.replace(ctrl=target)
-        data, _ = jax.lax.scan(lambda d, _: (mjx.step(self.model, d), None), data, None,
-                               length=self.substeps)
+        data = mjx_pd_step(self.model, data, target, self.substeps)
         return data, body_ground_contacts_mjx(self.mj, data)
+
+
+def mjx_pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) -> mjx.Data:
+    """Holds ``target`` joint positions with the model's PD actuators for ``substeps`` MJX steps."""
+    data = data.replace(ctrl=target)
+    data, _ = jax.lax.scan(lambda d, _: (mjx.step(model, d), None), data, None, length=substeps)
+    return data
 
 
 def _with_ground_sensors(mj_xml: str, floor: str = "floor") -> mujoco.MjModel:

@@ -94,24 +94,13 @@ def physics(cfg: PhysicsConfig):
                                  cfg.substeps, cfg.threads or None)
 
 
-def backend_name(cfg: PhysicsConfig) -> str:
-    """The backend ``cfg`` resolves to on this machine ('mjx' or 'mujoco')."""
-    return backends.resolve_backend(cfg.backend)
-
-
 def pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) -> mjx.Data:
     """Holds ``target`` joint positions [n_dof] with the PD servo for ``substeps`` MJX steps.
 
     The servo is the model's actuators: torque ``clip(kp*(target - q) - kd*qdot, ±max_torque)``,
     with the damping integrated implicitly by ``implicitfast``.
     """
-    data = data.replace(ctrl=target)
-
-    def body(d, _):
-        return mjx.step(model, d), None
-
-    data, _ = jax.lax.scan(body, data, None, length=substeps)
-    return data
+    return backends.mjx_pd_step(model, data, target, substeps)
 
 
 def pd_torque(ch: Character, q: jax.Array, qdot: jax.Array, target: jax.Array) -> jax.Array:
