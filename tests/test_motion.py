@@ -185,7 +185,8 @@ def _wavy_clip(T=61, fps=60.0, loop=False, sword_shield=False):
 
 
 def test_qvel_matches_mujoco_body_velocities():
-    # MuJoCo's body velocities from (qpos, qvel) agree with the finite-difference body velocities.
+    # MuJoCo's body velocities from (qpos, qvel) agree with the finite-difference body velocities
+    # (central differences at 60 fps on 0.3-rad, 0.7-Hz joint waves: a few mm/s of error).
     clip = _wavy_clip()
     m = clip.character.mj_model()
     d = mujoco.MjData(m)
@@ -196,8 +197,8 @@ def test_qvel_matches_mujoco_body_velocities():
             v = np.zeros(6)
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, v, 0)
             lin_origin = v[3:] + np.cross(v[:3], d.xpos[b] - d.xipos[b])
-            np.testing.assert_allclose(v[:3], clip.body_ang_vel[t, b - 1], atol=2e-3)
-            np.testing.assert_allclose(lin_origin, clip.body_lin_vel[t, b - 1], atol=2e-3)
+            np.testing.assert_allclose(v[:3], clip.body_ang_vel[t, b - 1], atol=3e-3)
+            np.testing.assert_allclose(lin_origin, clip.body_lin_vel[t, b - 1], atol=3e-3)
 
 
 # ----------------------------------------------------------------------------- MotionLib

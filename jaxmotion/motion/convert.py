@@ -1,6 +1,7 @@
 """From per-body local rotations to the character's hinge angles (numpy).
 
-Every 3-hinge body (x, y, z hinges, composed by MuJoCo as intrinsic X-Y-Z Euler) has two Euler
+Every 3-hinge body (three hinges about distinct axes, composed by MuJoCo as intrinsic Euler angles
+in chain order: x, y, z for most bodies, y, x, z for the hips) has two Euler
 solutions for the same rotation, ``(a, b, c)`` and ``(a + pi, pi - b, c + pi)``, each defined up
 to multiples of 2*pi. All of them give exactly the same body poses, but they differ for the
 physics: a PD target outside the joint range cannot be reached. So:
@@ -19,6 +20,8 @@ from __future__ import annotations
 
 from typing import Sequence
 
+import warnings
+
 import numpy as np
 
 from jaxmotion.motion import rotations as rot
@@ -36,16 +39,40 @@ def range_violation(angle: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.nda
     return np.maximum(np.maximum(lo - angle, angle - hi), 0.0)
 
 
-def euler_branches(q: np.ndarray) -> np.ndarray:
-    """Both XYZ-Euler solutions of rotations.
+def euler_from_quat(q: np.ndarray, axes: Sequence[int] = (0, 1, 2)) -> np.ndarray:
+    """Intrinsic Euler angles about three distinct axes in the given order (MuJoCo's composition
+    of a chain of hinges), middle angle in [-pi/2, pi/2].
 
     Args:
         q: [..., 4] wxyz unit quaternions.
+        axes: the hinge axes in chain order, e.g. (1, 0, 2) for y, x, z.
+
+    Returns:
+        [..., 3] angles in that order.
+    """
+    if tuple(axes) == (0, 1, 2):
+        return rot.euler_xyz_from_quat(q)
+    if sorted(axes) != [0, 1, 2]:
+        raise ValueError(f"three distinct hinge axes are needed, got {tuple(axes)}")
+    from scipy.spatial.transform import Rotation
+    flat = np.asarray(q, np.float64).reshape(-1, 4)[:, [1, 2, 3, 0]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # gimbal lock: scipy sets the third angle to 0
+        e = Rotation.from_quat(flat).as_euler("".join("XYZ"[a] for a in axes))
+    return e.reshape(np.shape(q)[:-1] + (3,))
+
+
+def euler_branches(q: np.ndarray, axes: Sequence[int] = (0, 1, 2)) -> np.ndarray:
+    """Both Euler solutions of rotations for hinges about ``axes`` (in chain order).
+
+    Args:
+        q: [..., 4] wxyz unit quaternions.
+        axes: three distinct axis indices.
 
     Returns:
         [..., 2, 3]: (a, b, c) with b in [-pi/2, pi/2], and (a + pi, pi - b, c + pi).
     """
-    e = rot.euler_xyz_from_quat(q)
+    e = euler_from_quat(q, axes)
     alt = np.stack([e[..., 0] + np.pi, np.pi - e[..., 1], e[..., 2] + np.pi], axis=-1)
     return np.stack([e, alt], axis=-2)
 
@@ -97,17 +124,16 @@ def local_quats_to_dof(ch: Character, local_quat: np.ndarray, fit_ranges: bool =
     for b in range(1, ch.num_bodies):
         idx = ch.body_joints(b)
         axes = [ch.joint_axis[i] for i in idx]
-        if len(idx) == 3 and axes == [0, 1, 2]:
-            triples.append((b, idx))
+        if len(idx) == 3 and sorted(axes) == [0, 1, 2]:
+            triples.append((b, idx, axes))
         elif len(idx) == 1:
             a = rot.twist_angle(local_quat[:, b], axes[0])
             dof[:, idx[0]] = range_wrap(a, lo[idx[0]], hi[idx[0]]) if fit_ranges else a
         elif idx:
             raise NotImplementedError(f"body {ch.body_names[b]} has hinges on axes {axes}")
     if triples:
-        bodies = [b for b, _ in triples]
-        idx = np.array([i for _, i in triples])  # [B, 3]
-        cands = euler_branches(local_quat[:, bodies])  # [T, B, 2, 3]
+        idx = np.array([i for _, i, _ in triples])  # [B, 3]
+        cands = np.stack([euler_branches(local_quat[:, b], ax) for b, _, ax in triples], 1)  # [T, B, 2, 3]
         if fit_ranges:
             cands = range_wrap(cands, lo[idx][:, None], hi[idx][:, None])
             choice = viterbi_branch(cands, lo[idx], hi[idx])

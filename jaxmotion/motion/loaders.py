@@ -1,7 +1,7 @@
 """Reading motion files (CompositeMotion JSON, DeepMimic txt, poselib npy) into ``Clip``s.
 
 Each file is read into one neutral form (root trajectory + local wxyz rotation of every body +
-the skeleton offsets to check against), converted to hinge angles by XYZ-Euler decomposition of
+the skeleton offsets to check against), converted to hinge angles by Euler decomposition (in hinge chain order) of
 each body's local rotation (1-DoF knees/elbows: the twist angle about their hinge axis; among
 the equivalent Euler solutions the one that best respects the joint ranges, see ``convert``),
 and then MuJoCo forward kinematics gives the body poses (``clip.build_clip``). ``fk_error_m``

@@ -15,6 +15,13 @@ Choices (see ``physics/sim.py`` for the solver settings):
   at the same gains does not (DESIGN.md, measured facts).
 * Joint ``stiffness``/``damping`` of the source are PD gains, not springs, so our joints carry
   no passive stiffness; armature is kept.
+* The hips' three hinges come in y, x, z order (flexion first), not the source's x, y, z. With
+  x, y, z the chain is singular at 90 degrees of hip flexion (the x and z axes line up), which
+  every squat, lunge and crouch passes through: the shared squat then needs hip angles 40-76
+  degrees outside the joint ranges in 75% of its frames, while decomposed flexion-first it stays
+  within them up to 5 (right hip flexion) and 17 degrees (right hip twist). The singularity moves
+  to 90 degrees of abduction, which no clip reaches. Isaac Gym, the authors' simulator, treats
+  the three hinges as one spherical joint, so the order is our modelling choice there too.
 * Bodies collide with the floor only (``contype``/``conaffinity`` bits): 34 contact candidates
   instead of 175, several times cheaper in MJX.
 """
@@ -106,10 +113,11 @@ def _body_table(sword_shield: bool) -> list[BodySpec]:
                 ("shield", "cylinder", 'fromto="0 0 0 0 0.03 0" size="0.3" density="250"'),)))
         bodies += arm
     for side, sgn in (("right", -1), ("left", 1)):
-        hx = [(-60, 15), (-140, 60), (-60, 35)] if side == "right" else [(-15, 60), (-140, 60), (-35, 60)]
+        # Hip hinges in y, x, z order (flexion, then abduction, then twist); ranges as the source.
+        hx = [(-140, 60), (-60, 15), (-60, 35)] if side == "right" else [(-140, 60), (-15, 60), (-35, 60)]
         bodies += [
             BodySpec(f"{side}_thigh", "pelvis", (0, sgn * 0.084887, 0),
-                     _hinges(f"{side}_hip", "xyz", hx, 300, 30, 125, .02), (
+                     _hinges(f"{side}_hip", "yxz", hx, 300, 30, 125, .02), (
                 (f"{side}_thigh", cap, 'fromto="0 0 -0.06 0 0 -0.36" size="0.055" density="1269"'),)),
             BodySpec(f"{side}_shin", f"{side}_thigh", (0, 0, -0.421546),
                      _hinges(f"{side}_knee", "y", [(0, 160)], 300, 30, 100, .02, single=True), (
@@ -226,7 +234,7 @@ class Character:
             raise KeyError(f"character has no body {name!r}; bodies are {list(self.body_names)}") from None
 
     def body_joints(self, body: int) -> list[int]:
-        """The DoF indices (in qpos[7:] order) of a body's hinges, x, y, z order."""
+        """The DoF indices (in qpos[7:] order) of a body's hinges, in their chain order."""
         return [i for i, b in enumerate(self.joint_body) if b == body]
 
     def mj_model(self) -> mujoco.MjModel:
