@@ -1,6 +1,7 @@
 """Shared pieces of the experiment files (files starting with '_' are not experiments)."""
 
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
+from jaxmotion.tasks import AimConfig, HeadingConfig, LocationConfig, TaskConfig  # noqa: F401 (re-exported)
 from jaxmotion.trainer import DiscConfig, NetConfig, PPOConfig, TrainConfig  # noqa: F401 (re-exported)
 
 WALK = (
@@ -27,3 +28,29 @@ def composite(upper: tuple[str, ...], lower: tuple[str, ...], weights=(0.5, 0.5)
         episode_steps=episode_steps)
     return TrainConfig(env=env, ppo=PPOConfig(objective_weights=weights), iterations=5000, chunk=10,
                        eval_every=25)
+
+LOCO = "compositemotion/locomotion/"
+RUN = (LOCO + "lafan1_run1_subject5_160_2105.json", LOCO + "lafan1_run2_subject1_145_2445.json")
+CROUCH = (LOCO + "crouch_lafan1_walk3_subject5_2490_2735.json", LOCO + "crouch_lafan1_walk3_subject5_320_1410.json")
+AIM = ("compositemotion/aiming/lafan1_aiming2_subject3_140_970.json",
+       "compositemotion/aiming/lafan1_aiming2_subject3_2940_3575.json")
+
+# The authors' location settings per locomotion style (notes §1): walk and crouch share them.
+LOCATION_WALK = LocationConfig()
+LOCATION_RUN = LocationConfig(speed_range=(2.0, 4.0), timer_range=(60, 90), v0_mean=1.5, v0_std=0.5,
+                              v0_range=(1.0, 3.0))
+
+
+def goal(task: TaskConfig, groups: tuple[GroupConfig, ...], init: tuple[str, ...],
+         iterations: int = 5000) -> TrainConfig:
+    """A goal task over body-group imitation, sized for a CPU (256-256 policy and critic; the
+    paper's 1024-512 is ``net.policy_hidden=1024,512 net.critic_hidden=1024,512``).
+
+    Episodes of 500 control steps (16.7 s) and reference-state initialisation from the
+    locomotion clips, as the authors' code; ω by the authors' rule (groups' ``weight`` and the
+    task's weights, ``tasks.combine_weights``). The paper trains these for 1-4 x 10^8 samples;
+    ``iterations`` 5000 is 20.5M.
+    """
+    env = EnvConfig(init_motions=init, groups=groups, episode_steps=500, task=task)
+    return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256)),
+                       ppo=PPOConfig(), iterations=iterations, chunk=10, eval_every=25)

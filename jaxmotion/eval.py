@@ -71,15 +71,15 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             done = out.terminated | out.truncated
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
             rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], state.data.qpos, alive & ~done,
-                   alive & out.terminated)
+                   alive & out.terminated, out.info, alive, out.task_reward)
             return (state, out.obs, alive & ~done), rec
 
         alive0 = jnp.ones((episodes,), bool)
-        _, (pos, quat, qpos, alive, fell) = jax.lax.scan(
+        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward) = jax.lax.scan(
             step, (state, obs, alive0), jax.random.split(k_act, steps))
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
-                first(state.data.qpos, qpos), first(alive0, alive), fell.any(0))
+                first(state.data.qpos, qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward)
 
     cache[sig] = run
     return run
@@ -91,11 +91,14 @@ def rollout(learner: Learner, ts: TrainState, episodes: int, steps: int, seed: i
 
     Returns numpy arrays: ``pos`` [T+1, E, nb, 3], ``quat`` [T+1, E, nb, 4] (world frame, the
     initial state first), ``qpos`` [T+1, E, nq] (MuJoCo generalised positions, for rendering),
-    ``alive`` [T+1, E] (the episode has not ended yet), ``fell`` [E].
+    ``alive`` [T+1, E] (the episode has not ended yet), ``fell`` [E]; the task's per-step
+    ``info`` {name: [T, E]}, ``stepped`` [T, E] (the step belongs to the episode, its last one
+    included) and ``task_reward`` [T, E, R].
     """
     run = _rollout_fn(learner, episodes, steps, deterministic)
-    pos, quat, qpos, alive, fell = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
-    return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell}
+    pos, quat, qpos, alive, fell, info, stepped, task_reward = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
+    return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell, "info": info,
+            "stepped": stepped, "task_reward": task_reward}
 
 
 def group_frame_positions(pos: np.ndarray, quat: np.ndarray, links: np.ndarray, anchor: int) -> np.ndarray:
@@ -180,9 +183,13 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
         mw, sw = M.mean_std(errs_w) if errs_w else (float("nan"), float("nan"))
         groups[gcfg.name] = {"dtw_error_m_mean": m, "dtw_error_m_std": s,
                              "dtw_error_world_m_mean": mw, "dtw_error_world_m_std": sw}
+    task = learner.env.task
+    summary = {"name": learner.cfg.env.task.name, **task.summary(ro["info"], ro["stepped"])}
+    for k, name in enumerate(task.reward_names):
+        summary[f"reward_{name}"] = float(ro["task_reward"][..., k][ro["stepped"]].mean())
     return {"groups": groups,
             "episode_length_s": float(np.mean((lengths - 1) * learner.env.dt)),
-            "fall_rate": float(np.mean(ro["fell"])), "episodes": episodes}
+            "fall_rate": float(np.mean(ro["fell"])), "episodes": episodes, "task": summary}
 
 
 def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None,
@@ -222,6 +229,9 @@ def main(argv: list[str] | None = None) -> int:
     for name, g in res["groups"].items():
         print(f"  {name:>8}: DTW error {g['dtw_error_m_mean']:.3f} ± {g['dtw_error_m_std']:.3f} m (group frame), "
               f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)")
+    if len(res["task"]) > 1:
+        print(f"  task {res['task']['name']}: " + ", ".join(
+            f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in res["task"].items() if k != "name"))
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
     # --- visualisation (jaxmotion.render / replay_html / plot) ---

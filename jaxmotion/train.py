@@ -67,6 +67,9 @@ def _log_eval(learner: Learner, ts: TrainState, cfg: TrainConfig, path: Path, la
     for g, m in res["groups"].items():
         row[f"eval/{g}/dtw_error_m"] = m["dtw_error_m_mean"]
         row[f"eval/{g}/dtw_error_world_m"] = m["dtw_error_world_m_mean"]
+    for k, v in res["task"].items():
+        if isinstance(v, (int, float)):
+            row[f"eval/task/{k}"] = v
     with open(path, "a") as f:
         f.write(json.dumps(row) + "\n")
     if writer is not None:

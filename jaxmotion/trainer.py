@@ -5,9 +5,10 @@ scans ``K`` of them under one ``jax.jit`` with the state donated. The environmen
 sharded over ``jax.devices()`` along a ``data`` mesh axis and everything else is replicated, so
 XLA inserts the gradient all-reduce (synchronous data parallelism, as in DD-PPO).
 
-Objectives: one per body-group discriminator (and, later, per goal reward), each with its own
-critic head, GAE and PopArt normaliser; advantages are standardised per objective and combined
-with weights ω (Σω = 1) into one PPO surrogate. ``multi_objective=False`` sums the rewards into
+Objectives: one per body-group discriminator and one per reward the task names
+(``env.task.reward_names``), each with its own critic head, GAE and PopArt normaliser; advantages
+are standardised per objective and combined with weights ω (Σω = 1, ``tasks.combine_weights``)
+into one PPO surrogate. The observation's body-state part is normalised, the goal part is not. ``multi_objective=False`` sums the rewards into
 one objective with one critic head; ``popart=False`` trains the critic on raw returns.
 """
 
@@ -30,6 +31,7 @@ from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
 from jaxmotion.nets import networks as nets
+from jaxmotion.tasks import combine_weights
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,7 +71,8 @@ class PPOConfig:
     """False: the w/o-PopArt ablation (critic trained on raw returns)."""
     popart_beta: float = 0.1
     objective_weights: tuple[float, ...] = ()
-    """ω per objective (groups, then goals); empty = uniform. Renormalised to sum to 1."""
+    """ω per objective (groups, then the task's rewards), renormalised to sum to 1; empty: the
+    groups' ``weight`` and the task's weights by the authors' rule (``tasks.combine_weights``)."""
     per_objective_clip: bool = False
     """True: clip each ω_k Ā_k term separately (the authors' code) instead of Eq. 9."""
     terminate_reward: float = -2.0
@@ -159,6 +162,8 @@ class Transition:
     terminated: jax.Array
     truncated: jax.Array
     unstable: jax.Array
+    task_reward: jax.Array
+    info: dict
 
 
 class Learner:
@@ -167,12 +172,19 @@ class Learner:
     def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None):
         self.cfg = cfg
         self.env = env if env is not None else HumanoidEnv(cfg.env)
-        n_groups = len(cfg.env.groups)
-        self.num_objectives = n_groups if cfg.ppo.multi_objective else 1
-        w = np.asarray(cfg.ppo.objective_weights or [1.0] * n_groups, np.float64)
-        if len(w) != n_groups or np.any(w < 0) or w.sum() <= 0:
-            raise ValueError(f"objective_weights must be {n_groups} non-negative numbers, got {cfg.ppo.objective_weights}")
+        task = self.env.task
+        self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)
+        n_obj = len(self.objective_names)
+        self.num_objectives = n_obj if cfg.ppo.multi_objective else 1
+        if cfg.ppo.objective_weights:
+            w = np.asarray(cfg.ppo.objective_weights, np.float64)
+            if len(w) != n_obj or np.any(w < 0) or w.sum() <= 0:
+                raise ValueError(f"objective_weights must be {n_obj} non-negative numbers (for "
+                                 f"{', '.join(self.objective_names)}), got {cfg.ppo.objective_weights}")
+        else:
+            w = combine_weights(tuple(g.weight for g in cfg.env.groups), task.weights())
         self.reward_weights = jnp.asarray(w / w.sum(), jnp.float32)
+        self.body_obs_size = self.env.body_obs_size
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
         nc = cfg.net
         self.policy = nets.make_policy_network(
@@ -196,10 +208,11 @@ class Learner:
 
     def _check_fall_value(self):
         pc = self.cfg.ppo
-        if pc.absorbing_termination and not pc.terminate_reward < self.MIN_REWARD:
+        low = min([self.MIN_REWARD] * bool(self.cfg.env.groups) + [self.env.task.min_reward])
+        if pc.absorbing_termination and not pc.terminate_reward < low:
             raise ValueError(
                 f"ppo.terminate_reward ({pc.terminate_reward}) must be below the lowest reward an "
-                f"objective pays ({self.MIN_REWARD}); otherwise a fall is worth as much as staying up "
+                f"objective pays ({low}); otherwise a fall is worth as much as staying up "
                 f"with every reward at its floor")
 
     def _check_batch(self):
@@ -221,14 +234,19 @@ class Learner:
             env_state=env_state, obs=obs, policy_params=pp, critic_params=cp, disc_params=dps,
             opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
             disc_opt_state=tuple(self.disc_optimizer.init(p) for p in dps),
-            obs_norm=N.normalizer_init(self.env.obs_size),
+            obs_norm=N.normalizer_init(self.body_obs_size),
             disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
             popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32))
 
     # ---- acting --------------------------------------------------------------------------
+    def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
+        """The body-state features normalised (and clipped), the goal features after them raw."""
+        body = N.normalize(norm, obs[..., :self.body_obs_size], self.cfg.ppo.obs_clip)
+        return jnp.concatenate([body, obs[..., self.body_obs_size:]], -1)
+
     def act(self, ts: TrainState, obs: jax.Array, rng: jax.Array | None) -> tuple[jax.Array, jax.Array]:
         """Samples (or, with ``rng=None``, takes the mean) action [B, A] and its log-prob [B]."""
-        mean, log_std = self.policy.apply(ts.policy_params, N.normalize(ts.obs_norm, obs, self.cfg.ppo.obs_clip))
+        mean, log_std = self.policy.apply(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))
         if rng is None:
             return mean, jnp.zeros(mean.shape[:-1])
         action = mean + jnp.exp(log_std) * jax.random.normal(rng, mean.shape)
@@ -253,7 +271,7 @@ class Learner:
             env_state, out = batch_step(env_state, action)
             tr = Transition(obs=obs, action=action, log_prob=logp, final_obs=out.final_obs,
                             disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
-                            unstable=out.unstable)
+                            unstable=out.unstable, task_reward=out.task_reward, info=out.info)
             return (env_state, out.obs), tr
 
         rng, key = jax.random.split(ts.rng)
@@ -315,7 +333,7 @@ class Learner:
     # ---- PPO -----------------------------------------------------------------------------
     def values(self, ts: TrainState, obs: jax.Array) -> jax.Array:
         """Unnormalised values [..., K] of raw observations."""
-        v = self.critic.apply(ts.critic_params, N.normalize(ts.obs_norm, obs, self.cfg.ppo.obs_clip))
+        v = self.critic.apply(ts.critic_params, self.normalize_obs(ts.obs_norm, obs))
         return PA.denormalize(ts.popart, v) if self.cfg.ppo.popart else v
 
     def ppo_step(self, ts: TrainState, traj: Transition, rewards: jax.Array):
@@ -339,7 +357,7 @@ class Learner:
         n = rewards.shape[0] * rewards.shape[1]
         flat = lambda x: x.reshape((n,) + x.shape[2:])
         _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights)
-        nobs = N.normalize(ts.obs_norm, flat(traj.obs), pc.obs_clip)
+        nobs = self.normalize_obs(ts.obs_norm, flat(traj.obs))
         batch = PPO.PPOBatch(obs=nobs, actions=flat(traj.action), log_probs=flat(traj.log_prob),
                              advantages=std_adv, returns=flat(returns))
         popart_state = ts.popart if pc.popart else None
@@ -375,11 +393,17 @@ class Learner:
     def iteration(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, dict]:
         ts, traj = self.rollout(ts, mesh)
         ts, rewards, metrics = self.disc_step(ts, traj)
+        rewards = jnp.concatenate([rewards, traj.task_reward], -1)
+        for name, r in zip(self.env.task.reward_names, jnp.moveaxis(traj.task_reward, -1, 0)):
+            metrics[f"reward/{name}"] = jnp.mean(r)
+        for k, v in traj.info.items():
+            metrics[f"task/{k}"] = jnp.mean(v.astype(jnp.float32))
         ts, m = self.ppo_step(ts, traj, rewards)
         metrics.update(m)
         # Observation statistics move after the update, so the update saw the rollout's own.
         valid = ~traj.unstable.reshape(-1)
-        obs_norm = N.normalizer_update(ts.obs_norm, traj.obs.reshape(-1, traj.obs.shape[-1]), valid)
+        body = traj.obs[..., :self.body_obs_size]
+        obs_norm = N.normalizer_update(ts.obs_norm, body.reshape(-1, body.shape[-1]), valid)
         done = traj.terminated | traj.truncated
         metrics["env/terminated"] = jnp.mean(traj.terminated)
         metrics["env/unstable"] = jnp.mean(traj.unstable)

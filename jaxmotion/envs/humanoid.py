@@ -1,4 +1,4 @@
-"""The humanoid environment: reference-state init, PD control, falls, discriminator views.
+"""The humanoid scene: reference-state init, PD control, falls, discriminator views, and a task.
 
 Physics runs on the backend ``cfg.physics.backend`` names (``physics/backends.py``: MJX, or MuJoCo
 C inside the compiled loop); observations are computed in JAX from ``qpos``/``qvel`` either way.
@@ -8,13 +8,15 @@ C inside the compiled loop); observations are computed in JAX from ``qpos``/``qv
 vmapped over environments and scanned over time. ``step`` resets an environment that terminated
 or timed out (the reset state comes back in ``state``; the pre-reset observation is kept in
 ``StepOut.final_obs`` for bootstrapping), and an environment whose physics went non-finite is
-reset without its NaNs reaching the batch.
+reset without its NaNs reaching the batch. The task (``EnvConfig.task``, see ``tasks/``) adds its
+goal state to ``EnvState.goal``, its goal features after the body state in the observation, its
+rewards to ``StepOut.task_reward`` and may end an episode.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Sequence
+from typing import Any, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -26,6 +28,7 @@ from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
 from jaxmotion.motion.motionlib import MotionLib, load_motionlib, qpos_qvel, sample, sample_times, sample_windows
 from jaxmotion.physics import sim
 from jaxmotion.physics.character import character
+from jaxmotion.tasks import TaskConfig, make_task
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,6 +48,8 @@ class GroupConfig:
     """Window length n+2 frames: t-n ... t+1."""
     speed_range: tuple[float, float] = (1.0, 1.0)
     """Random replay-speed range of the reference windows (the paper uses (0.8, 1.2) for some)."""
+    weight: float | None = None
+    """ω of this group's objective; None shares what the given weights leave (``tasks.combine_weights``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,16 +79,20 @@ class EnvConfig:
     """Clamp the reference-state initialisation's joint angles to the joint ranges."""
     max_qvel: float = 100.0
     """|qvel| above this counts as unstable physics: the environment is reset."""
+    task: TaskConfig = TaskConfig()
+    """The task the character performs besides imitating (``tasks/``); 'imitate' for none."""
 
 
 @struct.dataclass
 class EnvState:
-    """One environment's state. ``hist`` holds the last link frames, oldest first."""
+    """One environment's state. ``hist`` holds the last link frames, oldest first; ``goal`` is
+    the task's goal state."""
 
     data: mjx.Data
     hist: O.LinkFrames
     steps: jax.Array
     rng: jax.Array
+    goal: Any = None
 
 
 @struct.dataclass
@@ -96,6 +105,8 @@ class StepOut:
       disc_obs: per group [disc_dim_g], the window t-n ... t+1 ending at the reached state.
       terminated: fell or unstable (no bootstrap); truncated: hit the time limit (bootstrap).
       unstable: the physics went non-finite or too fast and was reset.
+      task_reward: [len(task.reward_names)] the task's rewards for this step.
+      info: the task's per-step metric scalars (``Task.summary``).
     """
 
     obs: jax.Array
@@ -104,6 +115,8 @@ class StepOut:
     terminated: jax.Array
     truncated: jax.Array
     unstable: jax.Array
+    task_reward: jax.Array
+    info: dict
 
 
 class HumanoidEnv:
@@ -154,6 +167,7 @@ class HumanoidEnv:
         self._body_geoms = jnp.asarray(geoms, jnp.int32)
         self._geom_size = jnp.asarray(m.geom_size[geoms], jnp.float32)
         self._geom_type = jnp.asarray(m.geom_type[geoms], jnp.int32)
+        self.task = make_task(cfg.task, self)
 
     # ---- sizes -------------------------------------------------------------------------
     @property
@@ -161,8 +175,13 @@ class HumanoidEnv:
         return self.character.num_dof
 
     @property
-    def obs_size(self) -> int:
+    def body_obs_size(self) -> int:
+        """Size of the body-state part of the observation (normalised); the goal follows it."""
         return self.cfg.policy_frames * self.character.num_bodies * 15
+
+    @property
+    def obs_size(self) -> int:
+        return self.body_obs_size + self.task.goal_size
 
     def disc_obs_sizes(self) -> tuple[int, ...]:
         return tuple(g.frames * len(idx[0]) * 9 for g, idx in zip(self.cfg.groups, self.group_idx))
@@ -174,7 +193,7 @@ class HumanoidEnv:
     # ---- reset -------------------------------------------------------------------------
     def reset(self, rng: jax.Array) -> tuple[EnvState, jax.Array]:
         """Reference-state initialisation at a random clip time; history from the clip's past."""
-        rng, k = jax.random.split(rng)
+        rng, k, k_goal = jax.random.split(rng, 3)
         clip, t = sample_times(self.init_lib, k, 1)
         times = t[0] - self.dt * jnp.arange(self.hist_len - 1, -1, -1, dtype=jnp.float32)
         ms = sample(self.init_lib, jnp.full_like(times, clip[0], dtype=jnp.int32), times)
@@ -192,13 +211,14 @@ class HumanoidEnv:
         # The history is what the simulator's kinematics make of the reference poses, so the first
         # windows after a reset are built exactly like every later one.
         hist = jax.vmap(self.frames_of)(qpos_h, qvel_h)
-        state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng)
+        goal = self.task.init(k_goal, _last(hist))
+        state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng, goal=goal)
         return state, self.policy_obs(state)
 
     # ---- observations ------------------------------------------------------------------
     def policy_obs(self, state: EnvState) -> jax.Array:
         h = jax.tree.map(lambda x: x[-self.cfg.policy_frames:], state.hist)
-        return O.policy_obs(h)
+        return jnp.concatenate([O.policy_obs(h), self.task.observe(state.goal, _last(state.hist))])
 
     def disc_obs(self, hist: O.LinkFrames) -> tuple[jax.Array, ...]:
         """Per group, the discriminator view of the newest ``frames`` link frames."""
@@ -284,14 +304,24 @@ class HumanoidEnv:
         truncated = (steps >= cfg.episode_steps) & ~terminated
         clean = lambda x: jnp.where(unstable, 0.0, jnp.nan_to_num(x, posinf=0.0, neginf=0.0))
         hist = jax.tree.map(clean, hist)
-        new_state = EnvState(data=data, hist=hist, steps=steps, rng=state.rng)
+        rng, k, k_task = jax.random.split(state.rng, 3)
+        task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task)
+        task_reward = jnp.where(unstable, 0.0, task.rewards)
+        terminated = terminated | (task.terminated & (steps > cfg.contact_grace_steps))
+        truncated = truncated & ~terminated
+        new_state = EnvState(data=data, hist=hist, steps=steps, rng=state.rng, goal=task.goal)
         final_obs = self.policy_obs(new_state)
         dobs = self.disc_obs(hist)
-        rng, k = jax.random.split(state.rng)
         reset_state, reset_obs = self.reset(k)
         done = terminated | truncated
         new_state = new_state.replace(rng=rng)
         out_state = jax.tree.map(lambda a, b: jnp.where(done, a, b), reset_state, new_state)
         obs = jnp.where(done, reset_obs, final_obs)
         return out_state, StepOut(obs=obs, final_obs=final_obs, disc_obs=dobs, terminated=terminated,
-                                  truncated=truncated, unstable=unstable)
+                                  truncated=truncated, unstable=unstable, task_reward=task_reward,
+                                  info=task.info)
+
+
+def _last(hist: O.LinkFrames) -> O.LinkFrames:
+    """The newest frame of a history."""
+    return jax.tree.map(lambda x: x[-1], hist)

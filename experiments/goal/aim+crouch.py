@@ -1,0 +1,14 @@
+"""Aiming + target location while crouching, from scratch (the authors' `config/aim+locomotion_crouch.py`):
+4 objectives, ω 0.2 aim upper body / 0.3 crouch lower body / 0.25 location / 0.25 aim. The upper
+body (torso, head, arms; pelvis anchor; a 2-frame window; replay speed 0.8-1.2) imitates the two
+LAFAN1 aiming clips, the lower body the crouch clips; the right forearm is the weapon."""
+
+import dataclasses
+
+from _common import AIM, CROUCH, LOCATION_WALK, GroupConfig, TaskConfig, goal
+
+
+def config():
+    return goal(TaskConfig(name="aim+location", location=dataclasses.replace(LOCATION_WALK, weight=0.25)),
+                (GroupConfig(name="upper", motions=AIM, frames=2, speed_range=(0.8, 1.2), weight=0.2),
+                 GroupConfig(name="lower", motions=CROUCH, weight=0.3)), CROUCH)

@@ -1,0 +1,24 @@
+"""Tasks a scene can run, by name (``EnvConfig.task.name``); see ``tasks/base.py``.
+
+Register a new one with ``TASKS["name"] = MyTask`` (a ``Task`` subclass taking ``(cfg, env)``).
+"""
+
+from jaxmotion.tasks.base import (AimConfig, HeadingConfig, LocationConfig, Task, TaskConfig,  # noqa: F401
+                                  TaskStep, combine_weights)
+from jaxmotion.tasks.location import AimLocation, Heading, Location
+
+TASKS: dict[str, type[Task]] = {
+    "imitate": Task,
+    "location": Location,
+    "heading": Heading,
+    "aim+location": AimLocation,
+}
+
+
+def make_task(cfg: TaskConfig, env) -> Task:
+    """The task ``cfg.name`` for a scene; a clear error lists the registered names."""
+    try:
+        cls = TASKS[cfg.name]
+    except KeyError:
+        raise ValueError(f"unknown task {cfg.name!r}; registered tasks: {sorted(TASKS)}") from None
+    return cls(cfg, env)

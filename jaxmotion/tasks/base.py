@@ -1,0 +1,177 @@
+"""What a task is: goal state, goal observation, named rewards, extra terminations, metrics.
+
+A scene (``envs/humanoid.py``: the character, its physics and reference clips) runs one task. The
+task is a set of pure functions of its own goal-state pytree and the character's link frames,
+vmapped with the environment:
+
+* ``init(rng, frame) -> goal``: a goal for a freshly reset character (``frame``: its link frames);
+* ``observe(goal, frame) -> [goal_size]``: the goal features, which the policy and critics get
+  after the body-state features, raw (not normalised, as the authors' code);
+* ``step(goal, prev, frame, rng) -> TaskStep``: after a control step from link frames ``prev`` to
+  ``frame``: the next goal, one reward per ``reward_names`` entry, an extra termination and
+  per-step ``info`` scalars that ``summary`` turns into the task's evaluation metrics.
+
+The learner makes one objective (critic head, PopArt statistics, weight ω) per reward name, next
+to one per discriminator; it never looks at which task it runs. Tasks are found by name in
+``tasks.TASKS``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jaxmotion.envs.observations import LinkFrames
+from jaxmotion.motion import rotations as R
+
+
+@dataclasses.dataclass(frozen=True)
+class LocationConfig:
+    """Target location (defaults: the authors' walk/crouch settings, notes §1)."""
+
+    radius: float = 0.5
+    """A goal counts as reached inside this distance (m); the reward is then 1."""
+    speed_range: tuple[float, float] = (1.2, 1.5)
+    """Clip of the required speed (m/s) the reward asks for."""
+    timer_range: tuple[int, int] = (90, 150)
+    """Control steps a goal lasts: U{lo .. hi-1}."""
+    v0_mean: float = 1.0
+    v0_std: float = 0.25
+    v0_range: tuple[float, float] = (0.0, 1.25)
+    """The goal's distance is v0 * timer / 30 with v0 from this truncated normal (m/s)."""
+    sharp_turns: bool = True
+    """True: a goal in any direction; False: within ±60 degrees of the current heading."""
+    max_overshoot: float = 3.0
+    """End the episode when the distance to the goal has grown by this much (m) since it was set
+    (0 disables)."""
+    weight: float = 0.5
+    """ω of the location objective."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HeadingConfig:
+    """Target heading and speed (the paper gives no formula; ours is in ``tasks/location.py``)."""
+
+    speed_range: tuple[float, float] = (1.0, 1.5)
+    """Target speed, uniform in this range (m/s)."""
+    turn_deg: float = 90.0
+    """Each new heading is the current facing ± U(0, turn_deg)."""
+    timer_range: tuple[int, int] = (90, 150)
+    """Control steps a heading lasts: U{lo .. hi-1}."""
+    settle_steps: int = 30
+    """Metrics skip this many steps after each new heading (time to turn)."""
+    weight: float = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class AimConfig:
+    """Aiming: the right forearm points along a target direction (notes §1)."""
+
+    yaw_deg: tuple[float, float] = (0.0, 45.0)
+    """Aim direction: the horizontal root-to-target direction turned left by U(yaw range)..."""
+    pitch_deg: tuple[float, float] = (0.0, 30.0)
+    """... and up by U(pitch range)."""
+    weight: float = 0.25
+    """ω of the aim objective."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskConfig:
+    """Which task the scene runs (a name in ``tasks.TASKS``) and the settings of each."""
+
+    name: str = "imitate"
+    location: LocationConfig = LocationConfig()
+    heading: HeadingConfig = HeadingConfig()
+    aim: AimConfig = AimConfig()
+
+
+@struct.dataclass
+class TaskStep:
+    """What a task reports for one control step (one environment)."""
+
+    goal: Any
+    rewards: jax.Array  # [len(reward_names)]
+    terminated: jax.Array  # bool: the task ends the episode
+    info: dict  # name -> scalar, for metrics
+
+
+class Task:
+    """The no-goal task: pure imitation (no goal features, no task rewards)."""
+
+    reward_names: ClassVar[tuple[str, ...]] = ()
+    min_reward: ClassVar[float] = 0.0
+    """The lowest reward any of this task's objectives pays per step."""
+
+    def __init__(self, cfg: TaskConfig, env):
+        self.cfg = cfg
+        self.env = env
+
+    @property
+    def goal_size(self) -> int:
+        return 0
+
+    def weights(self) -> tuple[float, ...]:
+        """ω of each reward, as configured."""
+        return ()
+
+    def init(self, rng: jax.Array, frame: LinkFrames) -> Any:
+        return jnp.zeros((0,), jnp.float32)
+
+    def observe(self, goal: Any, frame: LinkFrames) -> jax.Array:
+        return jnp.zeros((0,), jnp.float32)
+
+    def step(self, goal: Any, prev: LinkFrames, frame: LinkFrames, rng: jax.Array) -> TaskStep:
+        return TaskStep(goal=goal, rewards=jnp.zeros((0,), jnp.float32),
+                        terminated=jnp.zeros((), bool), info={})
+
+    def summary(self, info: dict[str, np.ndarray], alive: np.ndarray) -> dict[str, float]:
+        """Evaluation metrics from per-step ``info`` arrays [T, E] over steps where ``alive``."""
+        return {}
+
+
+def combine_weights(group_weights: tuple[float | None, ...], goal_weights: tuple[float, ...]) -> np.ndarray:
+    """ω of every objective, discriminators first (the authors' rule, notes §0.6).
+
+    Goal weights are taken as given. Given discriminator weights are renormalised to sum to 1,
+    or, when some are unassigned (None), the unassigned share ``1 - Σ given`` equally; all
+    discriminator weights are then scaled by ``1 - Σ goal weights``.
+    """
+    goal = np.asarray(goal_weights, np.float64)
+    if np.any(goal < 0) or (len(group_weights) and goal.sum() >= 1.0 - 1e-9):
+        raise ValueError(f"goal weights {tuple(goal_weights)} must be non-negative and sum below 1 "
+                         f"when there are discriminators")
+    given = [w for w in group_weights if w is not None]
+    if any(w < 0 for w in given):
+        raise ValueError(f"group weights must be non-negative, got {group_weights}")
+    n_free = sum(w is None for w in group_weights)
+    if n_free == 0:
+        total = sum(given)
+        disc = np.asarray(given, np.float64) / total if total > 0 else np.full(len(given), 1.0 / max(len(given), 1))
+    else:
+        rest = max(1.0 - sum(given), 0.0) / n_free
+        disc = np.asarray([rest if w is None else w for w in group_weights], np.float64)
+    disc = disc * (1.0 - goal.sum()) if len(group_weights) else disc
+    out = np.concatenate([disc, goal])
+    if out.sum() <= 0:
+        raise ValueError(f"objective weights sum to zero: groups {group_weights}, goals {goal_weights}")
+    return out / out.sum()
+
+
+def root_xy(frame: LinkFrames) -> jax.Array:
+    return frame.pos[0, :2]
+
+
+def heading_angle(frame: LinkFrames) -> jax.Array:
+    """Yaw of the root (pelvis) in the world (rad)."""
+    return R.heading_angle(frame.quat[0])
+
+
+def to_heading(frame: LinkFrames, v: jax.Array) -> jax.Array:
+    """World vector(s) [..., 3] in the root's heading (yaw-only) frame."""
+    inv = R.heading_inv(frame.quat[0])
+    return R.quat_rotate(jnp.broadcast_to(inv, v.shape[:-1] + (4,)), v)
