@@ -13,7 +13,9 @@ Upper body (chest open) DTW error 0.080 +- 0.042 m (paper 0.10), lower body (squ
 character does the chest-open arm motion upright but does not squat: the shared squat clip
 (2.83 s; the paper's is 1.67 s) has its hips 40-76 degrees outside the character's joint ranges
 in 75% of its frames (right_hip_x down to -136 deg against a limit of -60), so the lower-body
-reference is partly unreachable.
+reference is partly unreachable. That was the x, y, z hip chain, singular at 90 degrees of
+flexion; the hips are now flexion-first (y, x, z), which keeps the clip within the ranges up to
+17 degrees. Not yet retrained to 20M samples with the new hips.
 """
 import dataclasses
 
