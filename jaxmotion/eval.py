@@ -51,22 +51,29 @@ def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
     return experiment, cfg, learner, ts
 
 
-def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool):
-    """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape."""
+def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int = 0):
+    """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape.
+
+    ``ts`` may be a tuple of states whose policies take turns every ``switch_steps`` control
+    steps (policy switching: only the acting parameters change, the env state carries on)."""
     cache = learner.__dict__.setdefault("_eval_rollout_cache", {})
-    sig = (episodes, steps, deterministic)
+    sig = (episodes, steps, deterministic, switch_steps)
     if sig in cache:
         return cache[sig]
     env = learner.env
 
     @jax.jit
     def run(ts, key):
+        policies = ts if isinstance(ts, tuple) else (ts,)
         k_reset, k_act = jax.random.split(key)
         state, obs = jax.vmap(env.reset)(jax.random.split(k_reset, episodes))
 
-        def step(carry, k):
+        def step(carry, xs):
             state, obs, alive = carry
-            action, _ = learner.act(ts, obs, None if deterministic else k)
+            k, t = xs
+            which = (t // switch_steps) % len(policies) if switch_steps else jnp.zeros((), jnp.int32)
+            acts = [learner.act(p, obs, None if deterministic else k)[0] for p in policies]
+            action = jnp.stack(acts)[which]
             state, out = jax.vmap(env.step)(state, action)
             done = out.terminated | out.truncated
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
@@ -76,7 +83,7 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
 
         alive0 = jnp.ones((episodes,), bool)
         _, (pos, quat, qpos, alive, fell, info, stepped, task_reward) = jax.lax.scan(
-            step, (state, obs, alive0), jax.random.split(k_act, steps))
+            step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps)))
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
                 first(state.data.qpos, qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward)
@@ -85,9 +92,13 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
     return run
 
 
-def rollout(learner: Learner, ts: TrainState, episodes: int, steps: int, seed: int = 0,
-            deterministic: bool = True) -> dict[str, np.ndarray]:
+def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes: int, steps: int, seed: int = 0,
+            deterministic: bool = True, switch_steps: int = 0) -> dict[str, np.ndarray]:
     """Runs ``episodes`` environments for ``steps`` control steps with the policy's mean action.
+
+    With a tuple of states and ``switch_steps`` > 0, their policies take turns every
+    ``switch_steps`` steps on the same environments (they must share observation and action
+    spaces); ``info`` then also holds ``switch`` [T, E], true at the first step of each turn.
 
     Returns numpy arrays: ``pos`` [T+1, E, nb, 3], ``quat`` [T+1, E, nb, 4] (world frame, the
     initial state first), ``qpos`` [T+1, E, nq] (MuJoCo generalised positions, for rendering),
@@ -95,8 +106,11 @@ def rollout(learner: Learner, ts: TrainState, episodes: int, steps: int, seed: i
     ``info`` {name: [T, E]}, ``stepped`` [T, E] (the step belongs to the episode, its last one
     included) and ``task_reward`` [T, E, R].
     """
-    run = _rollout_fn(learner, episodes, steps, deterministic)
+    run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0)
     pos, quat, qpos, alive, fell, info, stepped, task_reward = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
+    if isinstance(ts, tuple) and switch_steps:
+        t = np.arange(steps)
+        info = dict(info, switch=np.broadcast_to(((t % switch_steps) == 0) & (t > 0), (episodes, steps)).T)
     return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell, "info": info,
             "stepped": stepped, "task_reward": task_reward}
 
@@ -192,6 +206,21 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
             "fall_rate": float(np.mean(ro["fell"])), "episodes": episodes, "task": summary}
 
 
+def switch_metrics(ro: dict[str, np.ndarray], dt: float, window_s: float = 1.0) -> dict:
+    """Falls per policy switch: falls within ``window_s`` after a switch, over switches made."""
+    switch, stepped = ro["info"]["switch"], ro["stepped"]
+    ended = stepped & ~ro["alive"][1:]  # the episode ended at this step (each env runs one)...
+    ended_fell = ro["fell"][None, :] & ended  # ...by a fall
+    w = max(int(round(window_s / dt)), 1)
+    near = np.zeros_like(switch)
+    for k in range(min(w, len(switch))):
+        near[k:] |= switch[:len(switch) - k]
+    made = int((switch & stepped).sum())
+    falls = int((ended_fell & near).sum())
+    return {"switches": made, "falls_after_switch": falls,
+            "falls_per_switch": falls / made if made else float("nan")}
+
+
 def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None,
              seed: int = 0) -> dict:
     """The metrics dict (see the module docstring) of ``episodes`` deterministic rollouts."""
@@ -206,6 +235,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=None, help="episodes (default: the config's eval_episodes)")
     p.add_argument("--json", type=Path, default=None, help="also write the metrics here")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--switch", type=Path, nargs="+", default=(), metavar="RUN",
+                   help="other run folders whose policies take turns with this one's (same observation and action sizes)")
+    p.add_argument("--switch-every", type=float, default=3.0, metavar="SECONDS",
+                   help="seconds between policy switches with --switch (default 3)")
     # --- visualisation flags (jaxmotion.render / replay_html / plot) ---
     p.add_argument("--video", type=Path, default=None,
                    help="render rollout episode 0 with the first group's reference as a ghost (.mp4, or .gif)")
@@ -220,10 +253,28 @@ def main(argv: list[str] | None = None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    policies, switch_steps = ts, 0
+    if args.switch:
+        others = [load_run(r) for r in args.switch]
+        for r, (_, _, lr, _) in zip(args.switch, others):
+            if (lr.env.obs_size, lr.env.action_size) != (learner.env.obs_size, learner.env.action_size):
+                print(f"error: {r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
+                      f"{args.run} has {learner.env.obs_size}/{learner.env.action_size}: they cannot take turns",
+                      file=sys.stderr)
+                return 2
+        policies = (ts,) + tuple(o[3] for o in others)
+        switch_steps = max(int(round(args.switch_every / learner.env.dt)), 1)
     # One rollout serves the metrics and the video / HTML replay (its episode 0).
-    ro = rollout(learner, ts, args.episodes or cfg.eval_episodes, cfg.env.episode_steps, args.seed)
+    ro = rollout(learner, policies, args.episodes or cfg.eval_episodes, cfg.env.episode_steps, args.seed,
+                 switch_steps=switch_steps)
     res = rollout_metrics(learner, ro)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
+    if switch_steps:
+        res["switching"] = {"runs": [str(args.run)] + [str(r) for r in args.switch],
+                            "every_s": switch_steps * learner.env.dt, **switch_metrics(ro, learner.env.dt)}
+        sw = res["switching"]
+        print(f"  switching every {sw['every_s']:.1f} s among {len(sw['runs'])} policies: {sw['switches']} switches, "
+              f"{sw['falls_after_switch']} falls within 1 s after one ({sw['falls_per_switch']:.2f} per switch)")
     print(f"{experiment}: {res['samples']:,} samples, {res['episodes']} episodes, "
           f"episode length {res['episode_length_s']:.2f} s, fall rate {res['fall_rate']:.2f}")
     for name, g in res["groups"].items():
