@@ -18,6 +18,11 @@ pelvis):
   for groups whose reference also drives the root, e.g. ``lower``/``full``).
 
 The reference sequence of a group is its first clip, repeated to cover the episode.
+
+The task's metrics (``Task.summary``: e.g. the location success rate) come under ``"task"``. With
+``--switch RUN2 [...] --switch-every S`` the policies of several runs that share observation and
+action spaces take turns every S seconds on the same environments (paper Fig. 9), and
+``"switching"`` counts the falls within 1 s of a switch.
 """
 
 from __future__ import annotations
