@@ -237,8 +237,7 @@ class AimLocation(Location):
         inside = self._inside(goal, frame)
         r_aim, ang = self.aim_reward(goal.aim, frame, inside)
         loc = super().step(goal.loc, prev, frame, k_l)
-        new = goal.loc.timer - 1 <= 0  # the location goal expired: a new one was drawn
-        aim = jnp.where(new, self.new_aim(k_a, loc.goal, frame), goal.aim)
+        aim = jnp.where(loc.info["goal_ended"], self.new_aim(k_a, loc.goal, frame), goal.aim)
         info = dict(loc.info, aim_error_deg=ang, aiming=~inside)
         return TaskStep(goal=AimGoal(loc=loc.goal, aim=aim), rewards=jnp.concatenate([loc.rewards, r_aim[None]]),
                         terminated=loc.terminated, info=info)
