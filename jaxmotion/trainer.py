@@ -258,23 +258,30 @@ class Learner:
         step = jax.vmap(self.env.step)
         if mesh is None or mesh.size == 1:
             return step
-        return jax.shard_map(step, mesh=mesh, in_specs=(P("data"), P("data")), out_specs=P("data"),
-                             check_vma=False)
+        return jax.shard_map(step, mesh=mesh, in_specs=(P("data"), P("data"), P("data")),
+                             out_specs=P("data"), check_vma=False)
 
     def rollout(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, Transition]:
-        """Unrolls the policy for ``horizon`` control steps in every environment."""
+        """Unrolls the policy for ``horizon`` control steps in every environment.
+
+        Each environment gets one fresh reset state per rollout, made before the scan, instead of
+        a reset computed (and mostly thrown away) on every step: on the 2-core CPU that reset was
+        half the cost of a rollout. An environment that ends two episodes within one rollout
+        (``horizon`` = 8 steps, 0.27 s) starts both from that same reference state.
+        """
         batch_step = self.batch_step(mesh)
+        rng, key, k_pool = jax.random.split(ts.rng, 3)
+        pool = jax.vmap(self.env.reset)(jax.random.split(k_pool, self.cfg.ppo.num_envs))
 
         def step(carry, key):
             env_state, obs = carry
             action, logp = self.act(ts, obs, key)
-            env_state, out = batch_step(env_state, action)
+            env_state, out = batch_step(env_state, action, pool)
             tr = Transition(obs=obs, action=action, log_prob=logp, final_obs=out.final_obs,
                             disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
                             unstable=out.unstable, task_reward=out.task_reward, info=out.info)
             return (env_state, out.obs), tr
 
-        rng, key = jax.random.split(ts.rng)
         keys = jax.random.split(key, self.cfg.ppo.horizon)
         (env_state, obs), traj = jax.lax.scan(step, (ts.env_state, ts.obs), keys)
         return ts.replace(env_state=env_state, obs=obs, rng=rng), traj

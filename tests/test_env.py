@@ -41,8 +41,8 @@ def fns(env):
     with jit_enabled():
         reset = jax.jit(jax.vmap(env.reset))
         step = jax.jit(jax.vmap(env.step))
-        kin = jax.jit(env.kinematics)
-    return reset, step, kin
+        frames = jax.jit(env.frames_of)
+    return reset, step, frames
 
 
 def _zero_gain_env(env):
@@ -95,6 +95,28 @@ def test_time_limit_truncates_and_resets(env, fns):
     assert int(state.steps[0]) == 1  # reset at step 70, then one more step
 
 
+def test_an_ended_episode_restarts_from_the_given_reset(env, fns):
+    """``step(..., reset=pool)``: an environment whose episode ends takes its pool entry (state and
+    observation), the others go on; without a pool it draws a fresh reset of its own."""
+    reset, _, _ = fns
+    with jit_enabled():
+        step = jax.jit(jax.vmap(env.step))
+        state, _ = reset(jax.random.split(jax.random.PRNGKey(5), B))
+        pool = reset(jax.random.split(jax.random.PRNGKey(6), B))
+        state = state.replace(steps=state.steps.at[0].set(env.cfg.episode_steps - 1))
+        hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (B, 28))
+        new, out = step(state, hold, pool)
+        fresh, fresh_out = step(state, hold)
+    assert bool(out.truncated[0]) and not bool((out.truncated | out.terminated)[1:].any())
+    for a, b in zip(jax.tree.leaves(new), jax.tree.leaves(pool[0])):
+        np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(out.obs[0], pool[1][0])
+    for a, b in zip(jax.tree.leaves(new), jax.tree.leaves(fresh)):
+        np.testing.assert_array_equal(a[1:], b[1:])
+    assert not np.array_equal(fresh.rng[0], pool[0].rng[0])  # a reset of its own
+    np.testing.assert_array_equal(out.final_obs, fresh_out.final_obs)
+
+
 def test_reset_step_deterministic_finite(env, fns):
     acts = 0.5 * jax.random.normal(jax.random.PRNGKey(1), (20, B, 28))
     s1, o1, out1, _ = _run(fns, env, jax.random.PRNGKey(2), acts)
@@ -134,15 +156,16 @@ def test_link_velocities_match_mujoco(env, fns):
     d.qpos[7:] = rng.uniform(-0.3, 0.3, 28)
     d.qvel[:] = rng.uniform(-1, 1, 34)
     mujoco.mj_forward(m, d)
-    dx = env._data0.replace(qpos=jnp.asarray(d.qpos, jnp.float32), qvel=jnp.asarray(d.qvel, jnp.float32))
     with jit_enabled():
-        lf = env.link_frames(kin(dx))
+        lf = kin(jnp.asarray(d.qpos, jnp.float32), jnp.asarray(d.qvel, jnp.float32))
     res = np.zeros(6)
     for b in range(15):
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_XBODY, b + 1, res, 0)
         np.testing.assert_allclose(lf.ang_vel[b], res[:3], atol=1e-4)
         np.testing.assert_allclose(lf.lin_vel[b], res[3:], atol=1e-4)
     np.testing.assert_allclose(lf.pos, d.xpos[1:], atol=1e-5)
+    q = np.asarray(lf.quat)
+    np.testing.assert_allclose(q * np.sign(q[:, :1] * d.xquat[1:, :1]), d.xquat[1:], atol=1e-5)
 
 
 def test_reference_and_simulation_discriminator_views_agree(env, fns):
@@ -155,7 +178,7 @@ def test_reference_and_simulation_discriminator_views_agree(env, fns):
     with jit_enabled():
         for k in range(5):
             qpos, qvel = qpos_qvel(jax.tree.map(lambda x: x[k], ms))
-            frames.append(env.link_frames(kin(env._data0.replace(qpos=qpos, qvel=qvel))))
+            frames.append(kin(qpos, qvel))
     hist = jax.tree.map(lambda *x: jnp.stack(x), *frames)
     sim_views = env.disc_obs(hist)
     for g, (links, anchor) in enumerate(env.group_idx):

@@ -22,6 +22,7 @@ from jaxmotion.motion import (BodyGroup, MotionFileError, MotionLib, default_gro
                               mean_root_speed, mirror_clip, qpos_qvel, resolve_group, sample,
                               sample_times, sample_windows)
 from jaxmotion.motion.convert import range_violation, range_wrap, viterbi_branch
+from jaxmotion.motion.motionlib import qpos_of
 from jaxmotion.physics.character import character
 
 REPO = Path(__file__).resolve().parents[1]
@@ -280,6 +281,17 @@ def test_sample_speed_and_jit(lib_and_clips):
     for f in ("root_pos", "root_quat", "dof_pos", "body_quat", "body_ang_vel"):
         np.testing.assert_allclose(getattr(jitted, f), getattr(slow, f), atol=1e-5, err_msg=f)
         np.testing.assert_allclose(getattr(vmapped, f), getattr(slow, f), atol=1e-5, err_msg=f)
+
+
+def test_pose_only_windows_are_the_full_windows_coordinates(lib_and_clips):
+    lib, _ = lib_and_clips
+    with jax.disable_jit(False):
+        full, pose = jax.jit(lambda k: (sample_windows(lib, k, 16, 5, 1 / 30, (0.8, 1.2)),
+                                        sample_windows(lib, k, 16, 5, 1 / 30, (0.8, 1.2), pose_only=True)))(
+            jax.random.PRNGKey(4))
+    np.testing.assert_array_equal(qpos_of(pose), qpos_of(full))
+    np.testing.assert_array_equal(qpos_of(full), qpos_qvel(full)[0])
+    assert pose.body_pos is None and pose.dof_vel is None
 
 
 def test_sample_times_and_windows(lib_and_clips):

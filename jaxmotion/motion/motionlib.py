@@ -172,13 +172,16 @@ def _frame_pair(lib: MotionLib, clip: jax.Array, tc: jax.Array):
 _LIN_FIELDS = tuple(f for f in FRAME_FIELDS if f not in _QUAT_FIELDS)
 
 
-def _sample_clip_time(lib: MotionLib, clip: jax.Array, tc: jax.Array, vel_scale) -> MotionState:
+def _sample_clip_time(lib: MotionLib, clip: jax.Array, tc: jax.Array, vel_scale,
+                      pose_only: bool = False) -> MotionState:
     """State at clip time ``tc`` (seconds of the clip itself); velocities times ``vel_scale``.
 
     All vector fields are gathered and blended as one packed [..., D] array and both quaternion
     fields with one slerp, to keep the number of primitives small (cheap to compile, and fast
-    when the suite runs op by op with ``JAX_DISABLE_JIT``).
+    when the suite runs op by op with ``JAX_DISABLE_JIT``). ``pose_only``: only the generalised
+    coordinates (root position and rotation, hinge angles); the other fields are None.
     """
+    lin_fields = ("root_pos", "dof_pos") if pose_only else _LIN_FIELDS
     clip = jnp.asarray(clip, jnp.int32)
     tc = jnp.asarray(tc, jnp.float32)
     clip, tc = jnp.broadcast_arrays(clip, tc)
@@ -186,20 +189,25 @@ def _sample_clip_time(lib: MotionLib, clip: jax.Array, tc: jax.Array, vel_scale)
     g0, g1, alpha = _frame_pair(lib, clip, tc)
     idx = jnp.stack([g0, g1], axis=-1)  # [..., 2]
     lead = tc.shape
-    tails = [getattr(lib, f).shape[1:] for f in _LIN_FIELDS]
+    tails = [getattr(lib, f).shape[1:] for f in lin_fields]
     sizes = [int(np.prod(s)) for s in tails]
     x = jnp.concatenate([getattr(lib, f)[idx].reshape(lead + (2, n))
-                         for f, n in zip(_LIN_FIELDS, sizes)], axis=-1)  # [..., 2, D]
-    is_dof = np.concatenate([np.full(n, f == "dof_pos") for f, n in zip(_LIN_FIELDS, sizes)])
-    is_vel = np.concatenate([np.full(n, f in _VEL_FIELDS) for f, n in zip(_LIN_FIELDS, sizes)])
+                         for f, n in zip(lin_fields, sizes)], axis=-1)  # [..., 2, D]
+    is_dof = np.concatenate([np.full(n, f == "dof_pos") for f, n in zip(lin_fields, sizes)])
+    is_vel = np.concatenate([np.full(n, f in _VEL_FIELDS) for f, n in zip(lin_fields, sizes)])
     x0 = x[..., 0, :]
     diff = x[..., 1, :] - x0
     # Hinge angles blend the short way round the circle (a stored angle may jump by 2*pi).
     diff = jnp.where(is_dof, rot.wrap_angle(diff), diff)
     v = (x0 + alpha[..., None] * diff) * jnp.where(is_vel, scale[..., None], 1.0)
     out = {}
-    for f, part, tail in zip(_LIN_FIELDS, jnp.split(v, np.cumsum(sizes)[:-1], axis=-1), tails):
+    for f, part, tail in zip(lin_fields, jnp.split(v, np.cumsum(sizes)[:-1], axis=-1), tails):
         out[f] = part.reshape(lead + tail)
+    if pose_only:
+        q = lib.root_quat[idx]
+        out["root_quat"] = rot.slerp(q[..., 0, :], q[..., 1, :], alpha)
+        out.update({f: None for f in FRAME_FIELDS if f not in out})
+        return MotionState(**out)
     q = jnp.concatenate([lib.root_quat[idx][..., None, :], lib.body_quat[idx]], axis=-2)
     qs = rot.slerp(q[..., 0, :, :], q[..., 1, :, :], alpha[..., None])  # [..., 1 + nb, 4]
     out["root_quat"], out["body_quat"] = qs[..., 0, :], qs[..., 1:, :]
@@ -245,7 +253,7 @@ def sample_times(lib: MotionLib, rng: jax.Array, n: int) -> tuple[jax.Array, jax
 
 
 def sample_windows(lib: MotionLib, rng: jax.Array, n: int, num_frames: int, dt: float,
-                   speed_range: tuple[float, float] = (1.0, 1.0)) -> MotionState:
+                   speed_range: tuple[float, float] = (1.0, 1.0), pose_only: bool = False) -> MotionState:
     """Random windows of consecutive reference states (e.g. discriminator inputs).
 
     Each window picks a clip (probability ``clip_weight``) and a speed ~ U(speed_range); frame k
@@ -260,6 +268,8 @@ def sample_windows(lib: MotionLib, rng: jax.Array, n: int, num_frames: int, dt: 
         num_frames: frames per window (static).
         dt: seconds between window frames (the policy's control step).
         speed_range: (low, high) replay speeds, > 0.
+        pose_only: only root position, root rotation and hinge angles (the rest None): what
+            ``qpos_of`` needs, at a fraction of the cost.
 
     Returns:
         ``MotionState`` with leading shape [n, num_frames].
@@ -273,7 +283,12 @@ def sample_windows(lib: MotionLib, rng: jax.Array, n: int, num_frames: int, dt: 
     start = jax.random.uniform(k_start, (n,)) * start_max
     tc = start[:, None] + jnp.arange(num_frames, dtype=jnp.float32)[None, :] * (dt * speed[:, None])
     return _sample_clip_time(lib, jnp.broadcast_to(clip[:, None], tc.shape), tc,
-                             jnp.broadcast_to(speed[:, None], tc.shape))
+                             jnp.broadcast_to(speed[:, None], tc.shape), pose_only)
+
+
+def qpos_of(state: MotionState) -> jax.Array:
+    """MuJoCo generalised positions [..., 7 + n_dof] of reference states."""
+    return jnp.concatenate([state.root_pos, state.root_quat, state.dof_pos], axis=-1)
 
 
 def qpos_qvel(state: MotionState) -> tuple[jax.Array, jax.Array]:
