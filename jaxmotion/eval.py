@@ -79,19 +79,23 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             which = (t // switch_steps) % len(policies) if switch_steps else jnp.zeros((), jnp.int32)
             acts = [learner.act(p, obs, None if deterministic else k)[0] for p in policies]
             action = jnp.stack(acts)[which]
+            # Incremental learning: the weights w of the meta action (paper Figs. 7-8).
+            w = (learner.meta_weights(policies[0], obs) if learner.meta is not None and len(policies) == 1
+                 else jnp.zeros((episodes, 0)))
             state, out = jax.vmap(env.step)(state, action)
             done = out.terminated | out.truncated
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
             rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], state.data.qpos, alive & ~done,
-                   alive & out.terminated, out.info, alive, out.task_reward)
+                   alive & out.terminated, out.info, alive, out.task_reward, w)
             return (state, out.obs, alive & ~done), rec
 
         alive0 = jnp.ones((episodes,), bool)
-        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward) = jax.lax.scan(
+        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w) = jax.lax.scan(
             step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps)))
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
-                first(state.data.qpos, qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward)
+                first(state.data.qpos, qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward,
+                meta_w)
 
     cache[sig] = run
     return run
@@ -109,15 +113,16 @@ def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes:
     initial state first), ``qpos`` [T+1, E, nq] (MuJoCo generalised positions, for rendering),
     ``alive`` [T+1, E] (the episode has not ended yet), ``fell`` [E]; the task's per-step
     ``info`` {name: [T, E]}, ``stepped`` [T, E] (the step belongs to the episode, its last one
-    included) and ``task_reward`` [T, E, R].
+    included), ``task_reward`` [T, E, R] and, for an incremental policy, ``meta_w`` [T, E, A]
+    (the weights of the meta action; [T, E, 0] otherwise).
     """
     run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0)
-    pos, quat, qpos, alive, fell, info, stepped, task_reward = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
+    pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
     if isinstance(ts, tuple) and switch_steps:
         t = np.arange(steps)
         info = dict(info, switch=np.broadcast_to(((t % switch_steps) == 0) & (t > 0), (episodes, steps)).T)
     return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell, "info": info,
-            "stepped": stepped, "task_reward": task_reward}
+            "stepped": stepped, "task_reward": task_reward, "meta_w": meta_w}
 
 
 def group_frame_positions(pos: np.ndarray, quat: np.ndarray, links: np.ndarray, anchor: int) -> np.ndarray:
@@ -226,6 +231,20 @@ def switch_metrics(ro: dict[str, np.ndarray], dt: float, window_s: float = 1.0) 
             "falls_per_switch": falls / made if made else float("nan")}
 
 
+def meta_weight_summary(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
+    """Mean meta-action weight w overall, per body group (the DoFs of the group's links) and per
+    DoF, over the steps of every episode."""
+    w, stepped = ro["meta_w"], ro["stepped"]
+    mean = w[stepped].mean(0)  # [A]
+    ch = learner.env.character
+    out = {"mean": float(mean.mean()), "group_mean": {}, "dof": {n: float(v) for n, v in zip(ch.joint_names, mean)}}
+    for g, (links, _) in zip(learner.cfg.env.groups, learner.env.group_idx):
+        dofs = [d for b in np.asarray(links) for d in ch.body_joints(int(b))]
+        if dofs:
+            out["group_mean"][g.name] = float(mean[dofs].mean())
+    return out
+
+
 def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None,
              seed: int = 0) -> dict:
     """The metrics dict (see the module docstring) of ``episodes`` deterministic rollouts."""
@@ -285,6 +304,11 @@ def main(argv: list[str] | None = None) -> int:
     for name, g in res["groups"].items():
         print(f"  {name:>8}: DTW error {g['dtw_error_m_mean']:.3f} ± {g['dtw_error_m_std']:.3f} m (group frame), "
               f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)")
+    if ro["meta_w"].shape[-1]:
+        res["meta_weights"] = meta_weight_summary(learner, ro)
+        mw = res["meta_weights"]
+        print(f"  meta weights w (meta: {learner.meta.run_dir}): " + ", ".join(
+            f"{g} {v:.2f}" for g, v in mw["group_mean"].items()) + f", all {mw['mean']:.2f}")
     if len(res["task"]) > 1:
         print(f"  task {res['task']['name']}: " + ", ".join(
             f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in res["task"].items() if k != "name"))
@@ -297,6 +321,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.html:
         from jaxmotion.replay_html import write_rollout_html
         print(f"html: {write_rollout_html(learner, ro, args.html)}")
+    if not args.no_plots and ro["meta_w"].shape[-1]:
+        from jaxmotion.plot import plot_meta_weights
+        print(f"meta weights: {plot_meta_weights(learner, ro, args.run / 'meta_weights.png')}")
     if not args.no_plots:
         from jaxmotion.plot import plot_run
         try:

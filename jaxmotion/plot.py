@@ -215,6 +215,36 @@ def plot_run(run_dir: str | Path, out_dir: str | Path | None = None,
     return paths + [p]
 
 
+def plot_meta_weights(learner, ro: dict, out: str | Path, episode: int = 0) -> Path:
+    """Incremental learning: the meta-action weights w (paper Figs. 7-8). Left, w of every DoF
+    over one episode (rows grouped by body, 0.5 the neutral colour); right, the histogram of w
+    over every step of every episode, one curve per body group of the run."""
+    plt = _mpl()
+    w, stepped = np.asarray(ro["meta_w"]), np.asarray(ro["stepped"])
+    ch = learner.env.character
+    t = np.flatnonzero(stepped[:, episode])
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 6), dpi=100, gridspec_kw={"width_ratios": [2.2, 1]})
+    im = ax.imshow(w[t, episode].T, aspect="auto", cmap="coolwarm", vmin=0.0, vmax=1.0, interpolation="nearest",
+                   extent=(0, len(t) * learner.env.dt, len(ch.joint_names) - 0.5, -0.5))
+    ax.set_yticks(range(len(ch.joint_names)), ch.joint_names, fontsize=6)
+    ax.set_xlabel("time (s)")
+    ax.set_title(f"w per DoF, episode {episode} (1: follow the meta policy)")
+    fig.colorbar(im, ax=ax, fraction=0.03)
+    bins = np.linspace(0, 1, 41)
+    for g, (links, _) in zip(learner.cfg.env.groups, learner.env.group_idx):
+        dofs = [d for b in np.asarray(links) for d in ch.body_joints(int(b))]
+        if dofs:
+            ax2.hist(w[stepped][:, dofs].ravel(), bins=bins, histtype="step", density=True, label=g.name)
+    ax2.set_xlabel("w")
+    ax2.set_title("w over all steps, by body group")
+    ax2.legend()
+    fig.tight_layout()
+    out = Path(out)
+    fig.savefig(out)
+    plt.close(fig)
+    return out
+
+
 # ---- several runs ------------------------------------------------------------------------------
 def find_runs(paths: Iterable[str | Path]) -> list[Path]:
     """Run folders (those with ``metrics.jsonl``) named directly or found below the paths."""

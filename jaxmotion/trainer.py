@@ -8,8 +8,10 @@ XLA inserts the gradient all-reduce (synchronous data parallelism, as in DD-PPO)
 Objectives: one per body-group discriminator and one per reward the task names
 (``env.task.reward_names``), each with its own critic head, GAE and PopArt normaliser; advantages
 are standardised per objective and combined with weights ω (Σω = 1, ``tasks.combine_weights``)
-into one PPO surrogate. The observation's body-state part is normalised, the goal part is not. ``multi_objective=False`` sums the rewards into
-one objective with one critic head; ``popart=False`` trains the critic on raw returns.
+into one PPO surrogate. The observation's body-state part is normalised, the goal part is not.
+``multi_objective=False`` sums the rewards into one objective with one critic head;
+``popart=False`` trains the critic on raw returns. With ``TrainConfig.meta`` the policy adds a
+frozen meta policy's sampled action, weighted per DoF (incremental learning, ``meta.py``).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from jaxmotion.algos import normalizer as N
 from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
+from jaxmotion.meta import Meta, PolicyState
 from jaxmotion.nets import networks as nets
 from jaxmotion.tasks import combine_weights
 
@@ -47,6 +50,9 @@ class NetConfig:
     disc_hidden: tuple[int, ...] = (256, 128)
     disc_heads: int = 32
     """Heads per discriminator ensemble (N in the paper)."""
+    meta_weight_bias: float = 3.0
+    """Incremental learning: initial bias of the sigmoid meta-weight head (3: w = 0.95, so the
+    new policy starts as the meta policy; ``meta.py``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,6 +132,9 @@ class TrainConfig:
     eval_episodes: int = 4
     eval_every: int = 0
     """Chunks between deterministic evaluations logged as ``eval/<group>/dtw_error_m`` (0: never)."""
+    meta: str = ""
+    """Incremental learning: a run folder (or a folder of runs: the newest) whose frozen policy
+    is the meta policy (``meta.py``); empty: none."""
 
     @property
     def samples_per_iteration(self) -> int:
@@ -148,6 +157,8 @@ class TrainState:
     popart: PA.PopArtState
     rng: jax.Array
     iteration: jax.Array
+    meta: Any = None
+    """The frozen meta policy's ``PolicyState`` (incremental learning), else None."""
 
 
 @struct.dataclass
@@ -157,6 +168,7 @@ class Transition:
     obs: jax.Array
     action: jax.Array
     log_prob: jax.Array
+    meta_action: jax.Array  # [.., A] the meta policy's sampled action; [.., 0] without one
     final_obs: jax.Array
     disc_obs: tuple
     terminated: jax.Array
@@ -187,9 +199,11 @@ class Learner:
         self.body_obs_size = self.env.body_obs_size
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
         nc = cfg.net
+        self.meta = Meta(cfg.meta, self.env) if cfg.meta else None
         self.policy = nets.make_policy_network(
             self.env.obs_size, self.env.action_size, hidden_sizes=nc.policy_hidden, activation=nc.activation,
-            state_dependent_std=nc.state_dependent_std, init_log_std=nc.init_log_std)
+            state_dependent_std=nc.state_dependent_std, init_log_std=nc.init_log_std,
+            meta_size=self.env.action_size if self.meta else 0, meta_weight_bias=nc.meta_weight_bias)
         self.critic = nets.make_critic_network(
             self.env.obs_size, self.num_objectives, hidden_sizes=nc.critic_hidden, activation=nc.activation)
         self.discs = tuple(nets.make_discriminator_network(d, nc.disc_heads, hidden_sizes=nc.disc_hidden)
@@ -236,7 +250,8 @@ class Learner:
             disc_opt_state=tuple(self.disc_optimizer.init(p) for p in dps),
             obs_norm=N.normalizer_init(self.body_obs_size),
             disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
-            popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32))
+            popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32),
+            meta=self.meta.state if self.meta else None)
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
@@ -244,13 +259,33 @@ class Learner:
         body = N.normalize(norm, obs[..., :self.body_obs_size], self.cfg.ppo.obs_clip)
         return jnp.concatenate([body, obs[..., self.body_obs_size:]], -1)
 
-    def act(self, ts: TrainState, obs: jax.Array, rng: jax.Array | None) -> tuple[jax.Array, jax.Array]:
-        """Samples (or, with ``rng=None``, takes the mean) action [B, A] and its log-prob [B]."""
-        mean, log_std = self.policy.apply(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))
+    def policy_dist(self, params, nobs: jax.Array, meta_action: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """(mean, log_std) of the policy at normalised observations; with a meta policy the mean
+        is ``mu + w * stop_gradient(meta_action)`` (paper Eq. 10)."""
+        out = self.policy.apply(params, nobs)
+        if self.meta is None:
+            return out
+        mu, log_std, w = out
+        return mu + w * jax.lax.stop_gradient(meta_action), log_std
+
+    def meta_weights(self, ts: TrainState | PolicyState, obs: jax.Array) -> jax.Array:
+        """The per-DoF weights w [B, A] of the meta action at raw observations."""
+        return self.policy.apply(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))[2]
+
+    def act(self, ts: TrainState | PolicyState, obs: jax.Array,
+            rng: jax.Array | None) -> tuple[jax.Array, jax.Array, jax.Array]:
+        """Samples (or, with ``rng=None``, takes the mean) action [B, A], its log-prob [B] and the
+        meta action it builds on ([B, A]; [B, 0] without a meta policy). ``ts``: anything with
+        ``policy_params``, ``obs_norm`` and ``meta``."""
+        if self.meta is None:
+            a_meta = jnp.zeros(obs.shape[:-1] + (0,), obs.dtype)
+        else:
+            a_meta = self.meta.act(ts.meta, obs, None if rng is None else jax.random.fold_in(rng, 1))
+        mean, log_std = self.policy_dist(ts.policy_params, self.normalize_obs(ts.obs_norm, obs), a_meta)
         if rng is None:
-            return mean, jnp.zeros(mean.shape[:-1])
+            return mean, jnp.zeros(mean.shape[:-1]), a_meta
         action = mean + jnp.exp(log_std) * jax.random.normal(rng, mean.shape)
-        return action, PPO.gaussian_log_prob(mean, log_std, action)
+        return action, PPO.gaussian_log_prob(mean, log_std, action), a_meta
 
     def batch_step(self, mesh: Mesh | None = None):
         """``vmap(env.step)``; over a mesh of several devices, each device steps its own shard
@@ -275,9 +310,9 @@ class Learner:
 
         def step(carry, key):
             env_state, obs = carry
-            action, logp = self.act(ts, obs, key)
+            action, logp, a_meta = self.act(ts, obs, key)
             env_state, out = batch_step(env_state, action, pool)
-            tr = Transition(obs=obs, action=action, log_prob=logp, final_obs=out.final_obs,
+            tr = Transition(obs=obs, action=action, log_prob=logp, meta_action=a_meta, final_obs=out.final_obs,
                             disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
                             unstable=out.unstable, task_reward=out.task_reward, info=out.info)
             return (env_state, out.obs), tr
@@ -365,12 +400,15 @@ class Learner:
         flat = lambda x: x.reshape((n,) + x.shape[2:])
         _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights)
         nobs = self.normalize_obs(ts.obs_norm, flat(traj.obs))
-        batch = PPO.PPOBatch(obs=nobs, actions=flat(traj.action), log_probs=flat(traj.log_prob),
-                             advantages=std_adv, returns=flat(returns))
+        # The policy also sees the meta action it acted on (a [N, 0] array without a meta policy).
+        batch = PPO.PPOBatch(obs={"x": nobs, "meta": flat(traj.meta_action)}, actions=flat(traj.action),
+                             log_probs=flat(traj.log_prob), advantages=std_adv, returns=flat(returns))
         popart_state = ts.popart if pc.popart else None
+        policy_apply = lambda p, o: self.policy_dist(p, o["x"], o["meta"])
+        critic_apply = lambda p, o: self.critic.apply(p, o["x"])
 
         def loss_fn(params, mb):
-            return PPO.ppo_losses(params["actor"], params["critic"], mb, self.policy.apply, self.critic.apply,
+            return PPO.ppo_losses(params["actor"], params["critic"], mb, policy_apply, critic_apply,
                                   self.objective_weights, popart_state, pc.clip_eps, pc.value_coef,
                                   pc.entropy_coef, pc.per_objective_clip)
 

@@ -90,6 +90,10 @@ class GaussianPolicy(nn.Module):
         hidden layer with weights ``U(+-1e-4)`` and bias ``init_log_std``. False: a learned
         state-independent ``[A]`` parameter initialised to ``init_log_std``.
       init_log_std: initial ``log_std`` (-3 gives sigma ~ 0.05).
+      meta_size: > 0 for incremental learning (``meta.py``): a third output ``w [..., meta_size]``,
+        a sigmoid head (``meta_weight``, weights U(+-1e-4), bias ``meta_weight_bias``) that
+        weights a frozen meta policy's action; the ``mean`` head then starts at U(+-1e-4), so the
+        new policy starts as the meta policy.
     """
 
     action_size: int
@@ -97,11 +101,14 @@ class GaussianPolicy(nn.Module):
     activation: str = "relu6"
     state_dependent_std: bool = True
     init_log_std: float = -3.0
+    meta_size: int = 0
+    meta_weight_bias: float = 3.0
 
     @nn.compact
-    def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
+    def __call__(self, obs: jax.Array) -> tuple[jax.Array, ...]:
         h = MLP(self.hidden_sizes, self.activation, name="torso")(obs)
-        mean = nn.Dense(self.action_size, kernel_init=torch_default_init, name="mean")(h)
+        mean_init = symmetric_uniform(1e-4) if self.meta_size else torch_default_init
+        mean = nn.Dense(self.action_size, kernel_init=mean_init, name="mean")(h)
         if self.state_dependent_std:
             log_std = nn.Dense(
                 self.action_size,
@@ -114,7 +121,11 @@ class GaussianPolicy(nn.Module):
                 "log_std", nn.initializers.constant(self.init_log_std), (self.action_size,)
             )
             log_std = jnp.broadcast_to(log_std, mean.shape)
-        return mean, log_std
+        if not self.meta_size:
+            return mean, log_std
+        w = nn.Dense(self.meta_size, kernel_init=symmetric_uniform(1e-4),
+                     bias_init=nn.initializers.constant(self.meta_weight_bias), name="meta_weight")(h)
+        return mean, log_std, nn.sigmoid(w)
 
 
 class MultiHeadCritic(nn.Module):
@@ -251,7 +262,8 @@ def make_network(module: nn.Module, obs_size: int) -> Network:
 
 
 def make_policy_network(obs_size: int, action_size: int, **kwargs: Any) -> Network:
-    """``GaussianPolicy(action_size, **kwargs)``; apply returns ``(mean, log_std)``."""
+    """``GaussianPolicy(action_size, **kwargs)``; apply returns ``(mean, log_std)`` (and ``w``
+    with ``meta_size``)."""
     return make_network(GaussianPolicy(action_size=action_size, **kwargs), obs_size)
 
 

@@ -111,9 +111,13 @@ class Task:
         self.cfg = cfg
         self.env = env
 
+    goal_parts: ClassVar[tuple[tuple[str, int], ...]] = ()
+    """The goal features as named blocks (name, size), in observation order. A frozen meta
+    policy (``meta.py``) finds its own goal blocks in a new task's goal by these names."""
+
     @property
     def goal_size(self) -> int:
-        return 0
+        return sum(n for _, n in self.goal_parts)
 
     def weights(self) -> tuple[float, ...]:
         """ω of each reward, as configured."""

@@ -58,9 +58,7 @@ class Location(Task):
 
     reward_names = ("location",)
 
-    @property
-    def goal_size(self) -> int:
-        return 4
+    goal_parts = (("location", 4),)
 
     def weights(self):
         return (self.cfg.location.weight,)
@@ -135,9 +133,7 @@ class Heading(Task):
 
     reward_names = ("heading",)
 
-    @property
-    def goal_size(self) -> int:
-        return 3
+    goal_parts = (("heading", 3),)
 
     def weights(self):
         return (self.cfg.heading.weight,)
@@ -195,9 +191,7 @@ class AimLocation(Location):
         ch = env.character
         self._elbow, self._hand = ch.body_index("right_lower_arm"), ch.body_index("right_hand")
 
-    @property
-    def goal_size(self) -> int:
-        return 7
+    goal_parts = (("location", 4), ("aim", 3))
 
     def weights(self):
         return (self.cfg.location.weight, self.cfg.aim.weight)

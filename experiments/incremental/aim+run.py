@@ -1,0 +1,18 @@
+"""Aiming + target location while runing, learned incrementally (paper §5, Eq. 10, §6.5): the
+same scene, objectives and ω as `goal/aim+run`, with the frozen `goal/location_run` policy as
+the meta policy. The new policy outputs μ, σ and a weight w per DoF of the meta policy's sampled
+action; it starts as the meta policy (w = 0.95, μ ≈ 0; `jaxmotion/meta.py`). The paper's
+learned w (Fig. 7): the lower body follows the meta policy, the upper body does not.
+
+Train the meta policy first (`make train EXP=goal/location_run`); `meta` below takes its
+newest run, or name one: `make train EXP=incremental/aim+run ARGS="meta=runs/goal/location_run/<stamp>"`.
+`python -m jaxmotion.eval <run>` prints the mean w per body group and writes `meta_weights.png`.
+"""
+
+import dataclasses
+
+from jaxmotion.experiments import load_experiment
+
+
+def config():
+    return dataclasses.replace(load_experiment("goal/aim+run"), meta="runs/goal/location_run")

@@ -1,0 +1,94 @@
+"""Incremental learning (Xu et al. 2023, §5, Eq. 10, Alg. 1): a new policy on a frozen meta policy.
+
+The new policy is ``pi(a | s, g, a_meta) = N(mu + w * stop_gradient(a_meta), sigma^2)``: ``a_meta``
+is *sampled* from the frozen meta policy on its own slice of the observation (the body state and
+those of its goal blocks that the new task also has, found by name in ``Task.goal_parts``), and
+``mu``, ``sigma`` and ``w`` (one weight per action DoF) are outputs of the new network. ``a_meta``
+is stored in the rollout, because the PPO ratio depends on it.
+
+Choices the paper leaves open (notes §2): ``w`` is a sigmoid head whose bias starts at
+``NetConfig.meta_weight_bias`` (3: w = 0.95) and whose weights start at U(+-1e-4); the ``mu``
+head starts at U(+-1e-4) as well, so the new policy starts as (0.95 times) the meta policy.
+
+``TrainConfig.meta`` names the meta run: a run folder, or an experiment's folder of runs (its
+newest run with a checkpoint is taken). Its policy parameters and observation statistics are
+copied into ``TrainState.meta`` when the run starts and checkpointed with it, so a resumed run
+keeps the meta policy it started with even if the meta run trains on. A meta run may itself be
+incremental (its own meta comes along).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from jaxmotion import checkpoint as ckpt
+
+
+@struct.dataclass
+class PolicyState:
+    """What acting needs, and nothing else: a frozen policy inside ``TrainState.meta``."""
+
+    policy_params: Any
+    obs_norm: Any
+    meta: Any = None
+
+
+def resolve_run(path: str | Path) -> Path:
+    """A run folder, or the newest run with a checkpoint in a folder of runs; a clear error otherwise."""
+    p = Path(path)
+    if (p / ckpt.CONFIG_FILE).exists():
+        return p
+    runs = sorted(d for d in p.glob("*/") if (d / ckpt.CONFIG_FILE).exists() and any((d / "checkpoints").glob("[0-9]*")))
+    if not runs:
+        raise FileNotFoundError(f"meta={path}: neither a run folder (no {ckpt.CONFIG_FILE}) nor a folder of runs "
+                                f"with a checkpoint; train the meta policy first (e.g. make train EXP=goal/location_walk)")
+    return runs[-1]
+
+
+def goal_index(meta_parts: tuple[tuple[str, int], ...], parts: tuple[tuple[str, int], ...]) -> np.ndarray:
+    """Indices into a goal laid out as ``parts`` that give a goal laid out as ``meta_parts``."""
+    start, offsets = 0, {}
+    for name, n in parts:
+        offsets[name] = (start, n)
+        start += n
+    idx = []
+    for name, n in meta_parts:
+        if name not in offsets or offsets[name][1] != n:
+            have = ", ".join(f"{k} ({v[1]})" for k, v in offsets.items()) or "none"
+            raise ValueError(f"the meta policy observes goal block {name!r} ({n} features), which this "
+                             f"task does not have (its blocks: {have})")
+        idx.extend(range(offsets[name][0], offsets[name][0] + n))
+    return np.asarray(idx, np.int32)
+
+
+class Meta:
+    """A frozen meta policy: its learner (network, normaliser layout, own meta) and where its
+    observation lies in the new one."""
+
+    def __init__(self, path: str | Path, env):
+        from jaxmotion.eval import load_run  # eval builds on the trainer, which builds on this
+
+        self.run_dir = resolve_run(path)
+        self.experiment, _, self.learner, ts = load_run(self.run_dir)
+        menv = self.learner.env
+        if menv.action_size != env.action_size or menv.character.num_bodies != env.character.num_bodies:
+            raise ValueError(f"meta policy {self.run_dir} drives another character ({menv.action_size} DoF, "
+                             f"{menv.character.num_bodies} bodies; this one: {env.action_size}, "
+                             f"{env.character.num_bodies})")
+        if menv.body_obs_size != env.body_obs_size:
+            raise ValueError(f"meta policy {self.run_dir} sees {menv.cfg.policy_frames} frames of body state, "
+                             f"this task {env.cfg.policy_frames}: set env.policy_frames alike")
+        gidx = goal_index(menv.task.goal_parts, env.task.goal_parts)
+        self.obs_index = jnp.asarray(np.concatenate([np.arange(env.body_obs_size), env.body_obs_size + gidx]),
+                                     jnp.int32)
+        self.state = PolicyState(policy_params=ts.policy_params, obs_norm=ts.obs_norm, meta=ts.meta)
+        self.iteration = int(ts.iteration)
+
+    def act(self, state: PolicyState, obs, rng):
+        """Sampled (``rng`` None: mean) meta action [..., A] of the new task's raw observations."""
+        return self.learner.act(state, obs[..., self.obs_index], rng)[0]

@@ -1,0 +1,133 @@
+"""Incremental learning (``meta.py``): a new policy on a frozen meta policy's sampled action."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from conftest import jit_enabled
+from jaxmotion import checkpoint as ckpt
+from jaxmotion.algos import ppo as PPO
+from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
+from jaxmotion.meta import goal_index, resolve_run
+from jaxmotion.tasks import TaskConfig
+from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+
+WALK = ("compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",)
+AIM = ("compositemotion/aiming/lafan1_aiming2_subject3_140_970.json",)
+
+
+def _cfg(task: str, groups, **kw) -> TrainConfig:
+    env = EnvConfig(init_motions=WALK, groups=groups, episode_steps=20, policy_frames=2, task=TaskConfig(name=task))
+    return TrainConfig(env=env, net=NetConfig(policy_hidden=(32, 32), critic_hidden=(32, 32), disc_hidden=(16, 16),
+                                              disc_heads=2),
+                       ppo=PPOConfig(num_envs=8, horizon=4, minibatch_size=16, epochs=1),
+                       disc=DiscConfig(minibatch_size=16), iterations=1, chunk=1, **kw)
+
+
+@pytest.fixture(scope="module")
+def meta_run(tmp_path_factory, data_dir):
+    """A run folder holding an (untrained) target-location policy: a meta policy to build on."""
+    run = tmp_path_factory.mktemp("runs") / "goal" / "location_walk" / "20260101-000000"
+    cfg = _cfg("location", (GroupConfig(name="full", motions=WALK),))
+    with jit_enabled():
+        learner = Learner(cfg)
+        ts = jax.jit(learner.init)(jax.random.PRNGKey(7))
+    # A policy whose actions are far from zero, so that "follows the meta policy" is visible.
+    mean = ts.policy_params["params"]["mean"]
+    params = {"params": {**ts.policy_params["params"], "mean": {**mean, "kernel": 20.0 * mean["kernel"]}}}
+    ts = ts.replace(policy_params=params)
+    ckpt.write_config(run, "goal/location_walk", cfg)
+    mgr = ckpt.manager(run)
+    ckpt.save(mgr, 1, ts)
+    mgr.close()
+    return run
+
+
+@pytest.fixture(scope="module")
+def incremental(meta_run):
+    cfg = _cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2), GroupConfig(name="lower", motions=WALK)),
+               meta=str(meta_run.parent))  # a folder of runs: its newest is taken
+    with jit_enabled():
+        learner = Learner(cfg)
+        ts = jax.jit(learner.init)(jax.random.PRNGKey(0))
+    return learner, ts
+
+
+def test_goal_blocks_are_found_by_name():
+    parts = (("location", 4), ("aim", 3))
+    np.testing.assert_array_equal(goal_index((("location", 4),), parts), [0, 1, 2, 3])
+    np.testing.assert_array_equal(goal_index((("aim", 3),), parts), [4, 5, 6])
+    np.testing.assert_array_equal(goal_index((), parts), np.zeros(0))
+    with pytest.raises(ValueError, match="heading"):
+        goal_index((("heading", 3),), parts)
+
+
+def test_meta_run_must_exist(tmp_path):
+    with pytest.raises(FileNotFoundError, match="train the meta policy first"):
+        resolve_run(tmp_path)
+
+
+def test_incremental_policy_starts_as_its_meta_policy(incremental, meta_run):
+    learner, ts = incremental
+    assert learner.meta.run_dir == meta_run
+    obs = ts.obs
+    with jit_enabled():
+        a, _, a_meta = jax.jit(lambda o: learner.act(ts, o, None))(obs)
+        w = jax.jit(lambda o: learner.meta_weights(ts, o))(obs)
+        # The meta policy acts on its own slice: the body state and the location block of the goal.
+        body = learner.env.body_obs_size
+        ref = jax.jit(lambda o: learner.meta.learner.act(ts.meta, o, None)[0])(obs[:, :body + 4])
+    np.testing.assert_allclose(a_meta, ref, atol=1e-6)
+    np.testing.assert_allclose(w, 1 / (1 + np.exp(-3.0)), atol=1e-3)
+    assert float(jnp.abs(a_meta).mean()) > 0.3  # a meta policy that acts
+    np.testing.assert_allclose(a, w * a_meta, atol=0.01)  # mu starts near 0
+
+
+def test_rollout_stores_the_meta_action_and_updates_leave_the_meta_policy_frozen(incremental):
+    learner, ts = incremental
+    with jit_enabled():
+        ts1, traj = jax.jit(learner.rollout)(ts)
+        T, B = traj.terminated.shape
+        assert traj.meta_action.shape == (T, B, learner.env.action_size)
+        # The stored log-probs are those of the policy at the stored meta actions (PPO ratio 1).
+        flat = lambda x: x.reshape((T * B,) + x.shape[2:])
+
+        def logp(ts, traj):
+            nobs = learner.normalize_obs(ts.obs_norm, flat(traj.obs))
+            mean, log_std = learner.policy_dist(ts.policy_params, nobs, flat(traj.meta_action))
+            return PPO.gaussian_log_prob(mean, log_std, flat(traj.action))
+
+        np.testing.assert_allclose(jax.jit(logp)(ts, traj), flat(traj.log_prob), atol=1e-4)
+        ts2, _ = jax.jit(learner.iteration)(ts)
+    for a, b in zip(jax.tree.leaves(ts2.meta), jax.tree.leaves(ts.meta)):
+        np.testing.assert_array_equal(a, b)
+    moved = [not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(ts2.policy_params), jax.tree.leaves(ts.policy_params))]
+    assert any(moved)
+
+
+def test_eval_reports_and_plots_the_meta_weights(incremental, tmp_path):
+    from jaxmotion import eval as E
+    from jaxmotion.plot import plot_meta_weights
+
+    learner, ts = incremental
+    with jit_enabled():
+        ro = E.rollout(learner, ts, episodes=2, steps=6)
+    assert ro["meta_w"].shape == (6, 2, learner.env.action_size)
+    summary = E.meta_weight_summary(learner, ro)
+    assert set(summary["group_mean"]) == {"upper", "lower"}
+    assert summary["mean"] == pytest.approx(1 / (1 + np.exp(-3.0)), abs=1e-3)
+    assert len(summary["dof"]) == learner.env.action_size
+    out = plot_meta_weights(learner, ro, tmp_path / "w.png")
+    assert out.stat().st_size > 1000
+
+
+def test_meta_policy_with_another_history_length_is_a_clear_error(meta_run):
+    cfg = _cfg("aim+location", (GroupConfig(name="lower", motions=WALK),), meta=str(meta_run))
+    cfg = dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, policy_frames=3))
+    with jit_enabled(), pytest.raises(ValueError, match="frames of body state"):
+        Learner(cfg)
