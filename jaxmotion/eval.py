@@ -72,6 +72,7 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
         policies = ts if isinstance(ts, tuple) else (ts,)
         k_reset, k_act = jax.random.split(key)
         state, obs = jax.vmap(env.reset)(jax.random.split(k_reset, episodes))
+        markers = lambda s: jax.vmap(env.task.markers)(s.goal, jax.tree.map(lambda x: x[:, -1], s.hist))
 
         def step(carry, xs):
             state, obs, alive = carry
@@ -86,16 +87,16 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             done = out.terminated | out.truncated
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
             rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], state.data.qpos, alive & ~done,
-                   alive & out.terminated, out.info, alive, out.task_reward, w)
+                   alive & out.terminated, out.info, alive, out.task_reward, w, markers(state))
             return (state, out.obs, alive & ~done), rec
 
         alive0 = jnp.ones((episodes,), bool)
-        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w) = jax.lax.scan(
+        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, mk) = jax.lax.scan(
             step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps)))
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
                 first(state.data.qpos, qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward,
-                meta_w)
+                meta_w, jax.tree.map(first, markers(state), mk))
 
     cache[sig] = run
     return run
@@ -114,15 +115,17 @@ def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes:
     ``alive`` [T+1, E] (the episode has not ended yet), ``fell`` [E]; the task's per-step
     ``info`` {name: [T, E]}, ``stepped`` [T, E] (the step belongs to the episode, its last one
     included), ``task_reward`` [T, E, R] and, for an incremental policy, ``meta_w`` [T, E, A]
-    (the weights of the meta action; [T, E, 0] otherwise).
+    (the weights of the meta action; [T, E, 0] otherwise), and ``markers`` {name: [T+1, E, 2, 3]}:
+    what the task draws of its goal (``Task.markers``) at each recorded state.
     """
     run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0)
-    pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
+    pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, markers = jax.device_get(
+        run(ts, jax.random.PRNGKey(seed)))
     if isinstance(ts, tuple) and switch_steps:
         t = np.arange(steps)
         info = dict(info, switch=np.broadcast_to(((t % switch_steps) == 0) & (t > 0), (episodes, steps)).T)
     return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell, "info": info,
-            "stepped": stepped, "task_reward": task_reward, "meta_w": meta_w}
+            "stepped": stepped, "task_reward": task_reward, "meta_w": meta_w, "markers": markers}
 
 
 def group_frame_positions(pos: np.ndarray, quat: np.ndarray, links: np.ndarray, anchor: int) -> np.ndarray:

@@ -37,6 +37,9 @@ from typing import Iterable, Iterator, Mapping, Sequence
 import numpy as np
 
 GHOST_PREFIX = "ghost_"
+MARKER_RADIUS = 0.08
+MARKER_RGBA = {"target": (0.1, 0.8, 0.2, 0.9), "aim": (0.9, 0.15, 0.1, 0.9)}
+"""Colours of the task markers by name (``Task.markers``); others are yellow."""
 GHOST_RGBA = (0.85, 0.9, 1.0, 0.3)
 DEFAULT_LINK_RGBA = (0.7, 0.7, 0.7, 1.0)
 # One colour per body group, in the order of cfg.env.groups (tab10-like, opaque).
@@ -221,8 +224,10 @@ class SceneRenderer:
         self.option = mujoco.MjvOption()
         self.width, self.height = width, height
 
-    def render(self, qpos: np.ndarray, ghost_qpos: np.ndarray | None, lookat: np.ndarray) -> np.ndarray:
-        """One RGB frame [H, W, 3] uint8; ``ghost_qpos`` None hides the ghost."""
+    def render(self, qpos: np.ndarray, ghost_qpos: np.ndarray | None, lookat: np.ndarray,
+               markers: Sequence[tuple[np.ndarray, Sequence[float]]] = ()) -> np.ndarray:
+        """One RGB frame [H, W, 3] uint8; ``ghost_qpos`` None hides the ghost. ``markers``: task
+        goals as (segment [2, 3], rgba): a sphere where the segment has no length, else an arrow."""
         mj = self.mujoco
         self.data.qpos[: self.nq] = qpos
         if ghost_qpos is None:
@@ -236,6 +241,19 @@ class SceneRenderer:
         mj.mj_comPos(self.model, self.data)  # the light tracks the CoM
         self.camera.lookat[:] = lookat
         self.renderer.update_scene(self.data, camera=self.camera, scene_option=self.option)
+        scn = self.renderer.scene
+        for seg, rgba in markers:
+            if scn.ngeom >= scn.maxgeom:
+                break
+            g = scn.geoms[scn.ngeom]
+            a, b = np.asarray(seg[0], np.float64), np.asarray(seg[1], np.float64)
+            rgba = np.asarray(rgba, np.float32)
+            if np.linalg.norm(b - a) < 1e-6:
+                mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_SPHERE, np.array([MARKER_RADIUS, 0, 0]), a, np.eye(3).ravel(), rgba)
+            else:
+                mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
+                mj.mjv_connector(g, mj.mjtGeom.mjGEOM_ARROW, 0.02, a, b)
+            scn.ngeom += 1
         return self.renderer.render().copy()
 
     def close(self) -> None:
@@ -264,9 +282,10 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
                 group_colors: Mapping[int, Sequence[float]] | None = None,
                 width: int = 640, height: int = 480, *, camera_distance: float = 3.5,
                 camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
-                ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True
-                ) -> Iterator[np.ndarray]:
-    """``render_frames`` one frame at a time (uint8 [H, W, 3] each), for long videos."""
+                ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True,
+                markers: Mapping[str, np.ndarray] | None = None) -> Iterator[np.ndarray]:
+    """``render_frames`` one frame at a time (uint8 [H, W, 3] each), for long videos.
+    ``markers``: name -> [T, 2, 3] task-goal segments to draw (``Task.markers``)."""
     qpos_seq = np.asarray(qpos_seq, np.float64)
     if qpos_seq.ndim != 2:
         raise ValueError(f"qpos_seq must be [T, nq], got shape {qpos_seq.shape}")
@@ -282,7 +301,8 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
             camera_distance, camera_azimuth, camera_elevation)
         for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress,
                       leave=False):
-            yield sr.render(qpos_seq[t], None if ref_qpos_seq is None else ref_qpos_seq[t], lookat[t])
+            mk = [(seg[t], MARKER_RGBA.get(name, (0.9, 0.8, 0.1, 0.9))) for name, seg in (markers or {}).items()]
+            yield sr.render(qpos_seq[t], None if ref_qpos_seq is None else ref_qpos_seq[t], lookat[t], mk)
 
 
 def render_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
@@ -371,5 +391,6 @@ def render_rollout(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLik
     n = int(np.asarray(ro["alive"])[:, episode].sum())
     qpos = np.asarray(ro["qpos"])[:n, episode].astype(np.float64)
     ref = aligned_reference_qpos(reference_qpos(learner, group, n), qpos[0])
-    frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height)
+    markers = {k: np.asarray(v)[:n, episode] for k, v in (ro.get("markers") or {}).items()}
+    frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height, markers=markers)
     return write_video(frames, path, fps or 1.0 / learner.env.dt)

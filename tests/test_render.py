@@ -88,6 +88,26 @@ def test_render_frames_not_blank_and_moving(gl):
     assert np.abs(plain[0].astype(int) - frames[0].astype(int)).mean() > 0.2
 
 
+def test_task_markers_are_drawn(gl):
+    """A target point (sphere) and an aim direction (arrow) from ``Task.markers`` appear in the
+    frame in their colours, and only where the markers are given."""
+    _, q = _clip_qpos(2)
+    q = q[:1]
+    root = q[0, :3]
+    target = np.array([root[0] + 0.8, root[1] + 0.8, 0.1])
+    hand = root + np.array([0.0, -0.3, 0.4])
+    markers = {"target": np.stack([target, target])[None], "aim": np.stack([hand, hand + [0.0, -0.6, 0.3]])[None]}
+    size = (2 * W, 2 * H_PX)
+    plain = next(RD.iter_frames(q, None, _colors(), *size, progress=False)).astype(int)
+    drawn = next(RD.iter_frames(q, None, _colors(), *size, progress=False, markers=markers)).astype(int)
+    changed = np.abs(drawn - plain).sum(-1) > 30
+    assert changed.sum() > 50
+    r, g, b = (drawn[..., i] for i in range(3))
+    green = changed & (g - r > 60) & (g - b > 60)
+    red = changed & (r - g > 60) & (r - b > 60)
+    assert green.sum() > 20 and red.sum() > 10
+
+
 def test_render_frames_rejects_bad_shapes(gl):
     _, q = _clip_qpos(2)
     with pytest.raises(ValueError, match="must match"):

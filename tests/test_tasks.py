@@ -237,6 +237,14 @@ def test_task_in_the_scene(scene):
                     state.goal, jax.tree.map(lambda x: x[:, -1], state.hist)), atol=1e-5)
     np.testing.assert_array_equal(goals[1], goals[0])  # kept while the timer runs
     assert not np.allclose(goals[2], goals[1])  # the reset after step 2 drew new goals
+    # What the video draws: the target on the floor and the aim as an arrow from the right hand.
+    frame = jax.tree.map(lambda x: x[0, -1], state.hist)
+    mk = task.markers(jax.tree.map(lambda x: x[0], state.goal), frame)
+    np.testing.assert_allclose(mk["target"][0, :2], state.goal.loc.target[0])
+    np.testing.assert_array_equal(mk["target"][0], mk["target"][1])
+    hand = env.character.body_index("right_hand")
+    np.testing.assert_allclose(mk["aim"][0], frame.pos[hand])
+    np.testing.assert_allclose(mk["aim"][1] - mk["aim"][0], 0.6 * state.goal.aim[0], atol=1e-6)
 
 
 def test_learner_makes_one_objective_per_task_reward(scene):

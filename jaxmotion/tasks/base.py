@@ -137,6 +137,11 @@ class Task:
         """Evaluation metrics from per-step ``info`` arrays [T, E] over steps where ``alive``."""
         return {}
 
+    def markers(self, goal: Any, frame: LinkFrames) -> dict[str, jax.Array]:
+        """What the video draws of the goal: name -> [2, 3] world segment (from, to); a segment
+        of zero length is a point (``render.py``: a sphere; otherwise an arrow)."""
+        return {}
+
 
 def combine_weights(group_weights: tuple[float | None, ...], goal_weights: tuple[float, ...]) -> np.ndarray:
     """ω of every objective, discriminators first (the authors' rule, notes §0.6).

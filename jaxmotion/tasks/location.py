@@ -111,6 +111,10 @@ class Location(Task):
         info = {"distance": dist, "goal_ended": expired, "goal_reached": expired & reached, "inside": inside}
         return TaskStep(goal=goal, rewards=r[None], terminated=fail, info=info)
 
+    def markers(self, goal: LocationGoal, frame) -> dict[str, jax.Array]:
+        p = jnp.concatenate([goal.target, jnp.full((1,), 0.1)])  # a ball lying on the floor
+        return {"target": jnp.stack([p, p])}
+
     def summary(self, info, alive):
         ended = (info["goal_ended"] & alive).sum()
         out = {"mean_distance_m": float(info["distance"][alive].mean()) if alive.any() else float("nan"),
@@ -235,6 +239,10 @@ class AimLocation(Location):
         info = dict(loc.info, aim_error_deg=ang, aiming=~inside)
         return TaskStep(goal=AimGoal(loc=loc.goal, aim=aim), rewards=jnp.concatenate([loc.rewards, r_aim[None]]),
                         terminated=loc.terminated, info=info)
+
+    def markers(self, goal: AimGoal, frame) -> dict[str, jax.Array]:
+        h = frame.pos[self._hand]
+        return dict(super().markers(goal.loc, frame), aim=jnp.stack([h, h + 0.6 * goal.aim]))
 
     def summary(self, info, alive):
         out = super().summary(info, alive)
