@@ -262,6 +262,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=None, help="episodes (default: the config's eval_episodes)")
     p.add_argument("--json", type=Path, default=None, help="also write the metrics here")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--untrained", action="store_true",
+                   help="evaluate the run's configuration with freshly initialised networks (its seed): the baseline")
     p.add_argument("--switch", type=Path, nargs="+", default=(), metavar="RUN",
                    help="other run folders whose policies take turns with this one's (same observation and action sizes)")
     p.add_argument("--switch-every", type=float, default=3.0, metavar="SECONDS",
@@ -280,6 +282,9 @@ def main(argv: list[str] | None = None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    if args.untrained:
+        ts = jax.jit(learner.init)(jax.random.PRNGKey(cfg.seed))
+        experiment += " (untrained)"
     policies, switch_steps = ts, 0
     if args.switch:
         others = [load_run(r) for r in args.switch]

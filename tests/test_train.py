@@ -372,6 +372,12 @@ def test_eval_cli_reports_and_writes_everything_from_one_rollout(runs, tmp_path,
         assert (tmp_path / "v.gif").stat().st_size > 0
     out = capsys.readouterr().out
     assert "DTW error" in out and "html:" in out
+    # The same seeds without training: the baseline a trained run must beat.
+    with jit_enabled():
+        assert E.main([str(run_dir), "--episodes", "2", "--untrained", "--no-plots",
+                       "--json", str(tmp_path / "u.json")]) == 0
+    base = json.loads((tmp_path / "u.json").read_text())
+    assert base["experiment"].endswith("(untrained)") and base["samples"] == 0
 
 
 @pytest.mark.parametrize("cli", ["train", "eval", "bench"])
