@@ -54,3 +54,12 @@ def goal(task: TaskConfig, groups: tuple[GroupConfig, ...], init: tuple[str, ...
     env = EnvConfig(init_motions=init, groups=groups, episode_steps=500, task=task)
     return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256)),
                        ppo=PPOConfig(), iterations=iterations, chunk=10, eval_every=25)
+
+
+def incremental(scratch: str, meta: str) -> TrainConfig:
+    """Experiment ``scratch`` learned incrementally on the frozen policy of ``meta`` (a run
+    folder, or an experiment's folder of runs: its newest run; ``jaxmotion/meta.py``)."""
+    import dataclasses
+
+    from jaxmotion.experiments import load_experiment
+    return dataclasses.replace(load_experiment(scratch), meta=meta)

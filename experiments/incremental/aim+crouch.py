@@ -9,10 +9,8 @@ newest run, or name one: `make train EXP=incremental/aim+crouch ARGS="meta=runs/
 `python -m jaxmotion.eval <run>` prints the mean w per body group and writes `meta_weights.png`.
 """
 
-import dataclasses
-
-from jaxmotion.experiments import load_experiment
+from _common import incremental
 
 
 def config():
-    return dataclasses.replace(load_experiment("goal/aim+crouch"), meta="runs/goal/location_crouch")
+    return incremental("goal/aim+crouch", meta="runs/goal/location_crouch")

@@ -8,10 +8,8 @@ The meta run: the newest of `runs/incremental/aim+walk` (train that first), or n
 `ARGS="meta=<run folder>"` (a `goal/aim+walk` run works as well).
 """
 
-import dataclasses
-
-from jaxmotion.experiments import load_experiment
+from _common import incremental
 
 
 def config():
-    return dataclasses.replace(load_experiment("goal/aim+crouch"), meta="runs/incremental/aim+walk")
+    return incremental("goal/aim+crouch", meta="runs/incremental/aim+walk")
