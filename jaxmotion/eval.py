@@ -262,6 +262,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=None, help="episodes (default: the config's eval_episodes)")
     p.add_argument("--json", type=Path, default=None, help="also write the metrics here")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--clips", type=Path, nargs="+", default=None, metavar="PATH",
+                   help="tracker runs: clip files or folders to track (default: the run's own clips)")
     p.add_argument("--untrained", action="store_true",
                    help="evaluate the run's configuration with freshly initialised networks (its seed): the baseline")
     p.add_argument("--switch", type=Path, nargs="+", default=(), metavar="RUN",
@@ -285,6 +287,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.untrained:
         ts = jax.jit(learner.init)(jax.random.PRNGKey(cfg.seed))
         experiment += " (untrained)"
+    if cfg.env.task.name == "track":
+        return _main_track(args, experiment, cfg, learner, ts)
     policies, switch_steps = ts, 0
     if args.switch:
         others = [load_run(r) for r in args.switch]
@@ -339,6 +343,40 @@ def main(argv: list[str] | None = None) -> int:
         except FileNotFoundError as e:
             print(f"plots skipped: {e}", file=sys.stderr)
     # --- end visualisation ---
+    return 0
+
+
+def _main_track(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainState) -> int:
+    """``main`` for a tracker run: every clip once from t = 0 (``track_eval.py``)."""
+    from jaxmotion import track_eval as TE
+
+    res, ro = TE.evaluate_clips(learner, ts, args.clips)
+    res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
+    print(f"{experiment}: {res['samples']:,} samples, {res['successes']}/{res['clips_total']} clips tracked "
+          f"(mean body error <= 0.5 m throughout), {res.get('success_rate_0.25', float('nan')):.2f} at 0.25 m")
+    if res["clips"]:
+        print(f"  on successful clips: g-MPJPE {res['g_mpjpe_mm']:.1f} mm, MPJPE {res['mpjpe_mm']:.1f} mm, "
+              f"acc {res['acc_mm']:.2f} mm/frame^2, vel {res['vel_mm']:.2f} mm/frame")
+        print(f"  {'clip':<60} {'frames':>6} {'ok':>3} {'g-MPJPE':>8} {'MPJPE':>7}")
+        for c in res["clips"]:
+            print(f"  {Path(c['path']).name[:60]:<60} {c['frames']:>6} {'yes' if c['success'] else 'no':>3} "
+                  f"{c['g_mpjpe_mm']:>8.1f} {c['mpjpe_mm']:>7.1f}")
+    for e in res["errors"]:
+        print(f"  cannot use {e['path']}: {e['error']}", file=sys.stderr)
+    if args.json:
+        args.json.write_text(json.dumps(res, indent=2))
+    if args.video and ro is not None:
+        from jaxmotion.render import iter_frames, learner_group_colors, write_video
+        n = int(ro["played"][:, 0].sum())
+        frames = iter_frames(ro["qpos"][:n, 0].astype(np.float64), ro["ref_qpos"][:n, 0].astype(np.float64),
+                             learner_group_colors(learner))
+        print(f"video: {write_video(frames, args.video, 1.0 / learner.env.dt)} (clip 0, its reference as the ghost)")
+    if not args.no_plots:
+        from jaxmotion.plot import plot_run
+        try:
+            print(f"plots: {len(plot_run(args.run))} PNGs in {args.run}")
+        except FileNotFoundError as e:
+            print(f"plots skipped: {e}", file=sys.stderr)
     return 0
 
 

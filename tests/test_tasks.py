@@ -183,7 +183,7 @@ def _scene(task: str) -> HumanoidEnv:
     return HumanoidEnv(cfg, motion_libs=(lib, lib), init_lib=lib)
 
 
-@pytest.mark.parametrize("name", sorted(TASKS))
+@pytest.mark.parametrize("name", sorted(set(TASKS) - {"track"}))  # track: tests/test_track.py
 def test_every_task_quick_check(name):
     """Jitted and vmapped init/observe/step on moving frames: shapes, no NaN, rewards >= floor."""
     # Short goal timers, so every goal runs out and is redrawn within the loop.

@@ -196,10 +196,15 @@ class HumanoidEnv:
     # ---- reset -------------------------------------------------------------------------
     def reset(self, rng: jax.Array) -> tuple[EnvState, jax.Array]:
         """Reference-state initialisation at a random clip time; history from the clip's past."""
-        rng, k, k_goal = jax.random.split(rng, 3)
+        rng, k = jax.random.split(rng)
         clip, t = sample_times(self.init_lib, k, 1)
-        times = t[0] - self.dt * jnp.arange(self.hist_len - 1, -1, -1, dtype=jnp.float32)
-        ms = sample(self.init_lib, jnp.full_like(times, clip[0], dtype=jnp.int32), times)
+        return self.reset_at(rng, clip[0], t[0])
+
+    def reset_at(self, rng: jax.Array, clip: jax.Array, t: jax.Array) -> tuple[EnvState, jax.Array]:
+        """Reference-state initialisation at time ``t`` (s) of init clip ``clip``."""
+        rng, k_goal = jax.random.split(rng)
+        times = t - self.dt * jnp.arange(self.hist_len - 1, -1, -1, dtype=jnp.float32)
+        ms = sample(self.init_lib, jnp.full_like(times, clip, dtype=jnp.int32), times)
         qpos_h, qvel_h = qpos_qvel(ms)
         if self.cfg.init_within_limits:
             # Some clips leave the joint ranges (the squat's right hip by up to 75 degrees); started
@@ -214,7 +219,7 @@ class HumanoidEnv:
         # The history is what the simulator's kinematics make of the reference poses, so the first
         # windows after a reset are built exactly like every later one.
         hist = self.frames_of(qpos_h, qvel_h)
-        goal = self.task.init(k_goal, _last(hist))
+        goal = self.task.init(k_goal, _last(hist), (clip, t))
         state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng, goal=goal)
         return state, self.policy_obs(state)
 
@@ -303,7 +308,7 @@ class HumanoidEnv:
         task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task)
         task_reward = jnp.where(unstable, 0.0, task.rewards)
         terminated = terminated | (task.terminated & (steps > cfg.contact_grace_steps))
-        truncated = truncated & ~terminated
+        truncated = (truncated | task.truncated) & ~terminated
         new_state = EnvState(data=data, hist=hist, steps=steps, rng=state.rng, goal=task.goal)
         final_obs = self.policy_obs(new_state)
         dobs = self.disc_obs(hist)

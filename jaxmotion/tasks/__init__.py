@@ -4,14 +4,16 @@ Register a new one with ``TASKS["name"] = MyTask`` (a ``Task`` subclass taking `
 """
 
 from jaxmotion.tasks.base import (AimConfig, HeadingConfig, LocationConfig, Task, TaskConfig,  # noqa: F401
-                                  TaskStep, combine_weights)
+                                  TaskStep, TrackConfig, combine_weights)
 from jaxmotion.tasks.location import AimLocation, Heading, Location
+from jaxmotion.tasks.track import Track
 
 TASKS: dict[str, type[Task]] = {
     "imitate": Task,
     "location": Location,
     "heading": Heading,
     "aim+location": AimLocation,
+    "track": Track,
 }
 
 

@@ -4,7 +4,8 @@ A scene (``envs/humanoid.py``: the character, its physics and reference clips) r
 task is a set of pure functions of its own goal-state pytree and the character's link frames,
 vmapped with the environment:
 
-* ``init(rng, frame) -> goal``: a goal for a freshly reset character (``frame``: its link frames);
+* ``init(rng, frame, start) -> goal``: a goal for a freshly reset character (``frame``: its link
+  frames; ``start``: the clip and time of the reference state it was reset to);
 * ``observe(goal, frame) -> [goal_size]``: the goal features, which the policy and critics get
   after the body-state features, raw (not normalised, as the authors' code);
 * ``step(goal, prev, frame, rng) -> TaskStep``: after a control step from link frames ``prev`` to
@@ -81,6 +82,25 @@ class AimConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class TrackConfig:
+    """Motion tracking (Perpetual Humanoid Control; notes phc.md §0-§3): follow the init clips
+    frame by frame. Defaults: the authors' code."""
+
+    goal: str = "rotation"
+    """'rotation' (24 features per body) or 'keypoint' (positions and velocities only, 9)."""
+    termination: str = "max"
+    """'max': any body but the feet farther than ``termination_distance`` from its reference
+    (the code, 0.25 m); 'mean': the mean over those bodies (the paper, 0.5 m)."""
+    termination_distance: float = 0.25
+    exponents: tuple[float, float, float, float] = (100.0, 10.0, 0.1, 0.1)
+    """k of exp(-k * mean squared error) for position, rotation angle, linear and angular velocity."""
+    term_weights: tuple[float, float, float, float] = (0.5, 0.3, 0.1, 0.1)
+    """Weights of those four terms (they sum to 1: a perfect frame pays 1)."""
+    weight: float = 0.5
+    """ω of the imitation objective (the paper's 0.5 task / 0.5 motion prior)."""
+
+
+@dataclasses.dataclass(frozen=True)
 class TaskConfig:
     """Which task the scene runs (a name in ``tasks.TASKS``) and the settings of each."""
 
@@ -88,6 +108,7 @@ class TaskConfig:
     location: LocationConfig = LocationConfig()
     heading: HeadingConfig = HeadingConfig()
     aim: AimConfig = AimConfig()
+    track: TrackConfig = TrackConfig()
 
 
 @struct.dataclass
@@ -96,8 +117,9 @@ class TaskStep:
 
     goal: Any
     rewards: jax.Array  # [len(reward_names)]
-    terminated: jax.Array  # bool: the task ends the episode
+    terminated: jax.Array  # bool: the task ends the episode (no bootstrap)
     info: dict  # name -> scalar, for metrics
+    truncated: Any = False  # bool: the task's time is up (e.g. the tracked clip ended; bootstrapped)
 
 
 class Task:
@@ -123,7 +145,8 @@ class Task:
         """ω of each reward, as configured."""
         return ()
 
-    def init(self, rng: jax.Array, frame: LinkFrames) -> Any:
+    def init(self, rng: jax.Array, frame: LinkFrames, start: tuple[jax.Array, jax.Array] | None = None) -> Any:
+        """``start``: (clip index, time in s) of the reference state the character was reset to."""
         return jnp.zeros((0,), jnp.float32)
 
     def observe(self, goal: Any, frame: LinkFrames) -> jax.Array:

@@ -76,7 +76,7 @@ class Location(Task):
         target = root_xy(frame) + dist * jnp.stack([jnp.cos(ang), jnp.sin(ang)])
         return LocationGoal(target=target, timer=timer, dist0=dist, reached=jnp.zeros((), bool))
 
-    def init(self, rng, frame):
+    def init(self, rng, frame, start=None):
         return self.new_goal(rng, frame)
 
     def observe(self, goal: LocationGoal, frame: LinkFrames) -> jax.Array:
@@ -152,7 +152,7 @@ class Heading(Task):
                            timer=jax.random.randint(k_t, (), c.timer_range[0], c.timer_range[1]),
                            age=jnp.zeros((), jnp.int32))
 
-    def init(self, rng, frame):
+    def init(self, rng, frame, start=None):
         return self.new_goal(rng, frame)
 
     def observe(self, goal: HeadingGoal, frame) -> jax.Array:
@@ -208,7 +208,7 @@ class AimLocation(Location):
         pitch = jnp.deg2rad(jax.random.uniform(k_p, (), minval=c.pitch_deg[0], maxval=c.pitch_deg[1]))
         return jnp.stack([jnp.cos(pitch) * jnp.cos(yaw), jnp.cos(pitch) * jnp.sin(yaw), jnp.sin(pitch)])
 
-    def init(self, rng, frame):
+    def init(self, rng, frame, start=None):
         k_l, k_a = jax.random.split(rng)
         loc = self.new_goal(k_l, frame)
         return AimGoal(loc=loc, aim=self.new_aim(k_a, loc, frame))

@@ -1,0 +1,9 @@
+"""A tracker of three short DeepMimic clips (walk, run, punch): the CPU-sized demonstration that
+tracking is learned (success and g-MPJPE against the same seeds untrained, `eval --untrained`)."""
+
+from _common import track
+
+
+def config():
+    return track(("deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_run.txt", "deepmimic/humanoid3d_punch.txt"),
+                 iterations=1500)

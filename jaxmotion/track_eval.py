@@ -1,0 +1,159 @@
+"""Tracker evaluation: every clip once from t = 0, deterministically (PHC's protocol, notes phc.md §6).
+
+A clip fails when the mean body position error exceeds 0.5 m at any frame (the episode then ends
+there); ``success_rate_0.25`` applies 0.25 m to the frames the tracker played. On successful
+clips, frame-weighted as the authors' metric code: g-MPJPE (global body positions, mm), MPJPE
+(positions relative to the root, mm), acceleration error (second differences, mm/frame^2) and
+velocity error (first differences, mm/frame), all at the control rate against the clean clip.
+
+``python -m jaxmotion.eval <tracker-run> [--clips FILE-OR-FOLDER ...]`` calls ``evaluate_clips``;
+a clip the character cannot use is reported under ``errors``, not as a traceback.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxmotion.envs.humanoid import HumanoidEnv
+from jaxmotion.motion.loaders import MotionFileError, load_clips
+from jaxmotion.motion.motionlib import MotionLib
+
+FAIL_MEAN_M = 0.5
+
+
+def eval_env(learner, lib: MotionLib | None = None) -> HumanoidEnv:
+    """The learner's scene set up for evaluation on ``lib`` (default: its own tracked clips): the
+    paper's failure rule (mean body error > 0.5 m) ends an episode, nothing else does before the
+    clip's end."""
+    cfg = learner.cfg.env
+    lib = learner.env.init_lib if lib is None else lib
+    longest = int(np.max(np.asarray(lib.clip_len)))
+    task = dataclasses.replace(cfg.task, track=dataclasses.replace(
+        cfg.task.track, termination="mean", termination_distance=FAIL_MEAN_M))
+    cfg = dataclasses.replace(cfg, task=task, early_termination=False, episode_steps=longest + 1)
+    return HumanoidEnv(cfg, motion_libs=learner.env.motion_libs, init_lib=lib, physics=learner.env.physics)
+
+
+def track_rollout(learner, ts, env: HumanoidEnv) -> dict[str, np.ndarray]:
+    """Every clip of ``env.init_lib`` from t = 0 with the policy's mean action, in parallel.
+
+    Returns numpy arrays over T = longest clip - 1 steps and C clips: ``sim`` and ``ref`` body
+    positions [T+1, C, nb, 3] (the start frame first), ``played`` [T+1, C] (the frame belongs to
+    the clip's episode), ``failed`` [C], ``frames`` [C] (the clip's frame count at the control
+    rate), and ``qpos``/``ref_qpos`` [T+1, C, nq] for rendering."""
+    lib = env.init_lib
+    C = lib.num_clips
+    dur = np.asarray(lib.clip_duration)
+    frames = np.floor(dur / env.dt + 1e-6).astype(int) + 1
+    T = int(frames.max()) - 1
+
+    @jax.jit
+    def run(ts):
+        state, obs = jax.vmap(env.reset_at)(jax.random.split(jax.random.PRNGKey(0), C),
+                                            jnp.arange(C, dtype=jnp.int32), jnp.zeros(C))
+        ref_of = jax.vmap(lambda g: env.task.reference(g, 0.0))
+        ref_qpos = jax.vmap(lambda g: _ref_qpos(env, g))
+
+        def step(carry, _):
+            state, obs, alive = carry
+            action = learner.act(ts, obs, None)[0]
+            state, out = jax.vmap(env.step)(state, action)
+            # An episode that ended here was reset: its frame is not recorded (the failure is).
+            keep = alive & ~(out.terminated | out.truncated)
+            rec = (state.hist.pos[:, -1], ref_of(state.goal).pos, keep, alive & out.terminated, state.data.qpos,
+                   ref_qpos(state.goal))
+            return (state, out.obs, keep), rec
+
+        alive0 = jnp.ones((C,), bool)
+        ref0 = ref_of(state.goal)
+        _, (sim, ref, played, failed, qpos, rq) = jax.lax.scan(step, (state, obs, alive0), None, length=T)
+        first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
+        return (first(state.hist.pos[:, -1], sim), first(ref0.pos, ref), first(alive0, played), failed.any(0),
+                first(state.data.qpos, qpos), first(ref_qpos(state.goal), rq))
+
+    sim, ref, played, failed, qpos, rq = jax.device_get(run(ts))
+    return {"sim": sim, "ref": ref, "played": played, "failed": failed, "frames": frames, "qpos": qpos,
+            "ref_qpos": rq}
+
+
+def _ref_qpos(env, goal):
+    from jaxmotion.motion.motionlib import qpos_qvel, sample
+    return qpos_qvel(sample(env.init_lib, goal.clip, goal.time))[0]
+
+
+def clip_metrics(sim: np.ndarray, ref: np.ndarray) -> dict[str, float]:
+    """Errors of one played clip: body positions [F, nb, 3] (m) against its reference."""
+    g = np.linalg.norm(sim - ref, axis=-1)
+    local = np.linalg.norm((sim - sim[:, :1]) - (ref - ref[:, :1]), axis=-1)
+    vel = np.linalg.norm(np.diff(sim, 1, 0) - np.diff(ref, 1, 0), axis=-1)
+    acc = np.linalg.norm(np.diff(sim, 2, 0) - np.diff(ref, 2, 0), axis=-1)
+    mm = lambda x: float(1000.0 * x.mean()) if x.size else float("nan")
+    return {"g_mpjpe_mm": mm(g), "mpjpe_mm": mm(local), "acc_mm": mm(acc), "vel_mm": mm(vel)}
+
+
+def summarize(ro: dict[str, np.ndarray], paths: Sequence[str]) -> dict:
+    """The JSON fields of the tracker evaluation from ``track_rollout``'s output."""
+    clips, pooled = [], {"sim": [], "ref": []}
+    ok25 = 0
+    for c, path in enumerate(paths):
+        n = int(ro["played"][:, c].sum())
+        sim, ref = ro["sim"][:n, c], ro["ref"][:n, c]
+        success = not bool(ro["failed"][c])
+        mean_err = np.linalg.norm(sim - ref, axis=-1).mean(-1)
+        ok25 += int(success and bool((mean_err <= 0.25).all()))
+        clips.append({"path": path, "frames": int(ro["frames"][c]), "played": n, "success": success,
+                      "max_mean_error_m": float(mean_err.max()), **clip_metrics(sim, ref)})
+        if success:
+            pooled["sim"].append(sim)
+            pooled["ref"].append(ref)
+    n = len(paths)
+    overall = {"g_mpjpe_mm": float("nan"), "mpjpe_mm": float("nan"), "acc_mm": float("nan"), "vel_mm": float("nan")}
+    if pooled["sim"]:
+        # Frame-weighted over the successful clips (differences taken within each clip).
+        keys = ("g_mpjpe_mm", "mpjpe_mm", "acc_mm", "vel_mm")
+        per = [clip_metrics(s, r) for s, r in zip(pooled["sim"], pooled["ref"])]
+        w = {k: np.asarray([max(len(s) - d, 0) for s in pooled["sim"]], float)
+             for k, d in zip(keys, (0, 0, 2, 1))}
+        overall = {k: float(np.nansum([p[k] * wk for p, wk in zip(per, w[k])]) / max(w[k].sum(), 1.0)) for k in keys}
+    succ = sum(c["success"] for c in clips)
+    return {"clips_total": n, "successes": int(succ), "success_rate": succ / n if n else float("nan"),
+            "success_rate_0.25": ok25 / n if n else float("nan"), **overall, "clips": clips}
+
+
+def load_eval_clips(paths: Sequence[str | Path], character) -> tuple[MotionLib | None, list[str], list[dict]]:
+    """The clips at ``paths`` (files or folders) one by one: (library, their paths, errors)."""
+    from jaxmotion.motion.loaders import find_motion_files
+    good, names, errors = [], [], []
+    for p in paths:
+        try:
+            files = find_motion_files(p)
+        except (MotionFileError, FileNotFoundError) as e:
+            errors.append({"path": str(p), "error": str(e)})
+            continue
+        for f in files:
+            try:
+                good.extend(load_clips([f], character))
+                names.append(str(f))
+            except (MotionFileError, ValueError, KeyError) as e:
+                errors.append({"path": str(f), "error": str(e)})
+    return (MotionLib.from_clips(good) if good else None), names, errors
+
+
+def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None) -> tuple[dict, dict | None]:
+    """(metrics, rollout) of the tracker on its own clips or on ``paths``."""
+    errors: list[dict] = []
+    if paths:
+        lib, names, errors = load_eval_clips(paths, learner.env.character)
+        if lib is None:
+            return {"clips_total": 0, "successes": 0, "success_rate": float("nan"), "clips": [], "errors": errors}, None
+    else:
+        lib, names = None, list(learner.env.init_lib.clip_paths or learner.env.init_lib.clip_names)
+    env = eval_env(learner, lib)
+    ro = track_rollout(learner, ts, env)
+    return {**summarize(ro, names), "errors": errors}, ro

@@ -1,0 +1,201 @@
+"""The motion-tracking task (``tasks/track.py``): goal features, reward, termination, clip end."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from conftest import jit_enabled
+from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
+from jaxmotion.motion import MotionLib, make_test_clip
+from jaxmotion.tasks import TaskConfig, TrackConfig
+
+
+def _moving_clip(frames=30):
+    t = np.arange(frames)[:, None] / 30.0
+    dof = 0.3 * np.sin(2.0 * t + np.arange(28)[None] * 0.7)
+    return make_test_clip(frames, 30.0, root_vel=(0.6, 0.1, 0.0), root_height=0.95, yaw_rate=0.4, dof_pos=dof)
+
+
+def _env(goal="rotation", termination="max", distance=0.25):
+    lib = MotionLib.from_clips([_moving_clip()])
+    task = TaskConfig(name="track", track=TrackConfig(goal=goal, termination=termination, termination_distance=distance))
+    cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=100, policy_frames=1, task=task,
+                    init_within_limits=False, init_above_ground=False)
+    return HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
+
+
+@pytest.fixture(scope="module")
+def env():
+    return _env()
+
+
+def _ref_frame(env, t):
+    goal = env.task.init(None, None, (jnp.int32(0), jnp.float32(t)))
+    return env.task.reference(goal, 0.0)
+
+
+def test_goal_sizes():
+    assert _env().task.goal_size == 15 * 24 == 360
+    assert _env(goal="keypoint").task.goal_size == 15 * 9 == 135
+
+
+@pytest.mark.parametrize("goal", ["rotation", "keypoint"])
+def test_perfect_tracking_pays_one_and_sees_no_difference(goal):
+    env = _env(goal=goal)
+    task = env.task
+    with jit_enabled():
+        t, dt = 0.4, env.dt
+        frame = jax.jit(lambda: _ref_frame(env, t + dt))()  # where the reference is one step later
+        prev_goal = task.init(None, None, (jnp.int32(0), jnp.float32(t)))
+        out = jax.jit(lambda g, f: task.step(g, f, f, None))(prev_goal, frame)
+        feats = jax.jit(task.observe)(prev_goal, frame).reshape(15, -1)
+    assert float(out.rewards[0]) == pytest.approx(1.0, abs=1e-5)
+    assert not bool(out.terminated) and not bool(out.truncated)
+    assert float(out.goal.time) == pytest.approx(t + dt)
+    np.testing.assert_allclose(feats[:, :3], 0.0, atol=1e-5)  # position difference
+    if goal == "rotation":
+        np.testing.assert_allclose(feats[:, 3:9], np.tile([1, 0, 0, 0, 0, 1], (15, 1)), atol=1e-5)  # identity
+        np.testing.assert_allclose(feats[:, 9:15], 0.0, atol=1e-4)  # velocity differences
+    else:
+        np.testing.assert_allclose(feats[:, 3:6], 0.0, atol=1e-4)
+    # The reference positions relative to the simulated root, in its heading frame: the root's is
+    # (0, 0, 0) and the others keep their distance to it.
+    rel = feats[:, -9:-6] if goal == "rotation" else feats[:, 6:9]
+    np.testing.assert_allclose(rel[0], 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(rel, axis=-1), np.linalg.norm(frame.pos - frame.pos[0], axis=-1), atol=1e-5)
+
+
+def test_reward_and_termination_by_hand():
+    env = _env()
+    task = env.task
+    t, dt = 0.4, env.dt
+    with jit_enabled():
+        ref = jax.jit(lambda: _ref_frame(env, t + dt))()
+        goal = task.init(None, None, (jnp.int32(0), jnp.float32(t)))
+        step = jax.jit(lambda f: task.step(goal, f, f, None))
+        shifted = lambda d: ref.replace(pos=ref.pos + jnp.asarray([d, 0.0, 0.0]))
+        near, far = step(shifted(0.1)), step(shifted(0.3))
+    # Every body 0.1 m off along x: mean squared position error 0.01 / 3; the rest is perfect.
+    assert float(near.rewards[0]) == pytest.approx(0.5 * math.exp(-100 * 0.01 / 3) + 0.5, rel=1e-4)
+    assert float(near.info["body_error_m"]) == pytest.approx(0.1, rel=1e-4)
+    assert not bool(near.terminated) and bool(far.terminated)  # max rule at 0.25 m
+    # Only the feet off: not a termination (they are excluded), still a lower reward.
+    feet = jnp.asarray([env.character.body_index(b) for b in ("right_foot", "left_foot")])
+    with jit_enabled():
+        feet_off = step(ref.replace(pos=ref.pos.at[feet, 0].add(0.4)))
+    assert not bool(feet_off.terminated) and float(feet_off.rewards[0]) < 1.0
+    mean_env = _env(termination="mean", distance=0.5)
+    with jit_enabled():
+        g = mean_env.task.init(None, None, (jnp.int32(0), jnp.float32(t)))
+        three = jnp.asarray([0, 1, 2])  # three of 13 checked bodies 1 m off: mean 0.23 m
+        out = jax.jit(lambda f: mean_env.task.step(g, f, f, None))(ref.replace(pos=ref.pos.at[three, 0].add(1.0)))
+    assert not bool(out.terminated)
+
+
+def test_the_clip_end_truncates(env):
+    task = env.task
+    dur = float(env.init_lib.clip_duration[0])
+    with jit_enabled():
+        frame = jax.jit(lambda: _ref_frame(env, dur))()
+        step = jax.jit(lambda g: task.step(g, frame, frame, None))
+        last = step(task.init(None, None, (jnp.int32(0), jnp.float32(dur - env.dt))))
+        before = step(task.init(None, None, (jnp.int32(0), jnp.float32(dur - 3 * env.dt))))
+    assert bool(last.truncated) and not bool(before.truncated)
+
+
+def test_tracking_in_the_scene(env):
+    """Reset at a clip time, step: the goal's time advances with the character, the observation
+    carries the goal after the body state, and an env whose clip ends is reset, not terminated."""
+    with jit_enabled():
+        reset = jax.jit(jax.vmap(env.reset_at))
+        state, obs = reset(jax.random.split(jax.random.PRNGKey(0), 2), jnp.zeros(2, jnp.int32),
+                           jnp.asarray([0.2, float(env.init_lib.clip_duration[0]) - env.dt]))
+        assert obs.shape == (2, env.obs_size) and env.obs_size == env.body_obs_size + 360
+        hold = env.action_for_target(state.data.qpos[:, 7:])
+        step = jax.jit(jax.vmap(env.step))
+        state, out = step(state, hold)
+    np.testing.assert_allclose(state.goal.time[0], 0.2 + env.dt, atol=1e-6)
+    assert bool(jnp.isfinite(out.obs).all()) and out.task_reward.shape == (2, 1)
+    assert 0.0 < float(out.task_reward[0, 0]) <= 1.0
+    assert bool(out.truncated[1]) and not bool(out.terminated[1])  # its clip ended
+
+
+# ---- evaluation metrics -----------------------------------------------------------------------
+def test_metrics_by_hand():
+    from jaxmotion.track_eval import clip_metrics, summarize
+    rng = np.random.default_rng(0)
+    ref = np.cumsum(rng.normal(scale=0.01, size=(20, 15, 3)), 0)
+    m = clip_metrics(ref + np.asarray([0.01, 0.0, 0.0]), ref)  # every body 10 mm off, the same way
+    assert m["g_mpjpe_mm"] == pytest.approx(10.0, rel=1e-6)
+    assert m["mpjpe_mm"] == pytest.approx(0.0, abs=1e-9) and m["acc_mm"] == pytest.approx(0.0, abs=1e-9)
+    assert m["vel_mm"] == pytest.approx(0.0, abs=1e-9)
+    drift = ref + np.arange(20)[:, None, None] * np.asarray([0.002, 0.0, 0.0])  # 2 mm per frame
+    m = clip_metrics(drift, ref)
+    assert m["vel_mm"] == pytest.approx(2.0, rel=1e-6) and m["acc_mm"] == pytest.approx(0.0, abs=1e-9)
+    # Two clips, the second failed: success counts and metrics come from the first only.
+    T = 20
+    ro = {"sim": np.stack([ref + [0.01, 0, 0], ref + [0.6, 0, 0]], 1), "ref": np.stack([ref, ref], 1),
+          "played": np.stack([np.ones(T, bool), np.arange(T) < 5], 1), "failed": np.array([False, True]),
+          "frames": np.array([T, T])}
+    s = summarize(ro, ["a", "b"])
+    assert s["successes"] == 1 and s["success_rate"] == 0.5 and s["success_rate_0.25"] == 0.5
+    assert s["g_mpjpe_mm"] == pytest.approx(10.0, rel=1e-6)
+    assert [c["played"] for c in s["clips"]] == [T, 5] and s["clips"][1]["max_mean_error_m"] == pytest.approx(0.6)
+
+
+def test_unusable_clips_are_reported_not_raised(tmp_path):
+    from jaxmotion.physics.character import character
+    from jaxmotion.track_eval import load_eval_clips
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    lib, names, errors = load_eval_clips([bad, tmp_path / "missing.json"], character())
+    assert lib is None and names == [] and {Path(e["path"]).name for e in errors} == {"bad.json", "missing.json"}
+
+
+def test_short_tracking_training_beats_untrained_policies():
+    """A few CPU minutes of training on two short clips must track them from t = 0 longer and
+    closer (g-MPJPE over the frames played) than the same networks untrained, by more than the
+    spread of untrained seeds."""
+    from jaxmotion import track_eval as TE
+    from jaxmotion.trainer import (DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig, make_mesh,
+                                   make_train_chunk, shard_state)
+    iters, chunk, seeds = 200, 40, 3
+    clips = [make_test_clip(40, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87, name="stand"), _moving_clip(40)]
+    lib = MotionLib.from_clips(clips)
+    task = TaskConfig(name="track", track=TrackConfig(weight=0.9))
+    env_cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=60, policy_frames=1,
+                        early_termination=False, task=task)
+    cfg = TrainConfig(env=env_cfg,
+                      net=NetConfig(policy_hidden=(64, 64), critic_hidden=(64, 64), disc_hidden=(32, 32), disc_heads=4,
+                                    init_log_std=-2.0, state_dependent_std=False),
+                      ppo=PPOConfig(num_envs=32, horizon=8, minibatch_size=64, epochs=4, actor_lr=2e-4, critic_lr=1e-3),
+                      disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk)
+
+    def score(learner, ts):
+        res, _ = TE.evaluate_clips(learner, ts)
+        played = sum(c["played"] for c in res["clips"])
+        err = float(np.mean([c["g_mpjpe_mm"] for c in res["clips"]]))
+        return played, err, res
+
+    with jit_enabled():
+        learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
+        mesh = make_mesh(jax.devices()[:1])
+        untrained = [shard_state(learner.init(jax.random.PRNGKey(s)), mesh) for s in range(seeds)]
+        base = [score(learner, u) for u in untrained]
+        ts = jax.tree.map(lambda x: x.copy(), untrained[0])
+        run = make_train_chunk(learner, mesh, chunk, ts)
+        for _ in range(iters // chunk):
+            ts, _ = run(ts)
+        played, err, res = score(learner, ts)
+    base_played = np.array([b[0] for b in base])
+    base_err = np.array([b[1] for b in base])
+    print(f"frames tracked within 0.5 m: untrained {base_played}, trained {played}; g-MPJPE (mm) untrained "
+          f"{base_err.round(1)}, trained {err:.1f}; {res['successes']}/{res['clips_total']} clips")
+    assert played >= base_played.max()
+    assert err < base_err.min() - (base_err.max() - base_err.min())
