@@ -22,15 +22,19 @@ def resolve(path: str | os.PathLike) -> Path:
 def cli_errors(main):
     """Wraps a CLI ``main``: a motion file that is missing or malformed ends the command with one
     clear line (and how to point ``JAXMOTION_DATA`` at the clips) and exit status 2, not a
-    traceback."""
+    traceback; so does a meta run (incremental learning) that is missing or does not fit."""
     import functools
     import sys
 
     @functools.wraps(main)
     def wrapped(*args, **kwargs):
+        from jaxmotion.meta import MetaError
         from jaxmotion.motion.loaders import MotionFileError
         try:
             return main(*args, **kwargs)
+        except MetaError as e:  # incremental learning: the meta run is missing or does not fit
+            print(f"error: {e}", file=sys.stderr)
+            return 2
         except MotionFileError as e:
             print(f"error: {e}", file=sys.stderr)
             print(f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); "

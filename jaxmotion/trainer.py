@@ -32,7 +32,7 @@ from jaxmotion.algos import normalizer as N
 from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
-from jaxmotion.meta import Meta, PolicyState
+from jaxmotion.meta import Meta, PolicyState, resolve_run
 from jaxmotion.nets import networks as nets
 from jaxmotion.tasks import combine_weights
 
@@ -183,6 +183,8 @@ class Learner:
 
     def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None):
         self.cfg = cfg
+        if cfg.meta:
+            resolve_run(cfg.meta)  # a missing meta run fails before any clip is loaded
         self.env = env if env is not None else HumanoidEnv(cfg.env)
         task = self.env.task
         self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)

@@ -13,7 +13,7 @@ from conftest import jit_enabled
 from jaxmotion import checkpoint as ckpt
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
-from jaxmotion.meta import goal_index, resolve_run
+from jaxmotion.meta import MetaError, goal_index, resolve_run
 from jaxmotion.tasks import TaskConfig
 from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
@@ -68,8 +68,11 @@ def test_goal_blocks_are_found_by_name():
 
 
 def test_meta_run_must_exist(tmp_path):
-    with pytest.raises(FileNotFoundError, match="train the meta policy first"):
+    with pytest.raises(MetaError, match="train the meta policy first"):
         resolve_run(tmp_path)
+    # The CLI says so in one line instead of a traceback.
+    from jaxmotion import train as T
+    assert T.main(["incremental/aim+walk", f"meta={tmp_path}"]) == 2
 
 
 def test_incremental_policy_starts_as_its_meta_policy(incremental, meta_run):
