@@ -264,6 +264,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--clips", type=Path, nargs="+", default=None, metavar="PATH",
                    help="tracker runs: clip files or folders to track (default: the run's own clips)")
+    p.add_argument("--noise", type=float, default=0.0, metavar="LEVEL",
+                   help="tracker runs: follow clips perturbed like a video pose estimate (1: the defaults of "
+                        "motion/noise.PoseNoise), scored against the clean clips")
     p.add_argument("--untrained", action="store_true",
                    help="evaluate the run's configuration with freshly initialised networks (its seed): the baseline")
     p.add_argument("--switch", type=Path, nargs="+", default=(), metavar="RUN",
@@ -350,9 +353,10 @@ def _main_track(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: T
     """``main`` for a tracker run: every clip once from t = 0 (``track_eval.py``)."""
     from jaxmotion import track_eval as TE
 
-    res, ro = TE.evaluate_clips(learner, ts, args.clips)
+    res, ro = TE.evaluate_clips(learner, ts, args.clips, noise=args.noise, seed=args.seed)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
-    print(f"{experiment}: {res['samples']:,} samples, {res['successes']}/{res['clips_total']} clips tracked "
+    noisy = f" (inputs perturbed at noise level {args.noise:g})" if args.noise else ""
+    print(f"{experiment}: {res['samples']:,} samples, {res['successes']}/{res['clips_total']} clips tracked{noisy} "
           f"(mean body error <= 0.5 m throughout), {res.get('success_rate_0.25', float('nan')):.2f} at 0.25 m")
     if res["clips"]:
         print(f"  on successful clips: g-MPJPE {res['g_mpjpe_mm']:.1f} mm, MPJPE {res['mpjpe_mm']:.1f} mm, "

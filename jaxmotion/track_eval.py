@@ -126,8 +126,8 @@ def summarize(ro: dict[str, np.ndarray], paths: Sequence[str]) -> dict:
             "success_rate_0.25": ok25 / n if n else float("nan"), **overall, "clips": clips}
 
 
-def load_eval_clips(paths: Sequence[str | Path], character) -> tuple[MotionLib | None, list[str], list[dict]]:
-    """The clips at ``paths`` (files or folders) one by one: (library, their paths, errors)."""
+def load_eval_clips(paths: Sequence[str | Path], character) -> tuple[list, list[str], list[dict]]:
+    """The clips at ``paths`` (files or folders) one by one: (clips, their paths, errors)."""
     from jaxmotion.motion.loaders import find_motion_files
     good, names, errors = [], [], []
     for p in paths:
@@ -142,18 +142,48 @@ def load_eval_clips(paths: Sequence[str | Path], character) -> tuple[MotionLib |
                 names.append(str(f))
             except (MotionFileError, ValueError, KeyError) as e:
                 errors.append({"path": str(f), "error": str(e)})
-    return (MotionLib.from_clips(good) if good else None), names, errors
+    return good, names, errors
 
 
-def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None) -> tuple[dict, dict | None]:
-    """(metrics, rollout) of the tracker on its own clips or on ``paths``."""
+def clean_reference(env: HumanoidEnv, lib: MotionLib, steps: int) -> np.ndarray:
+    """Body positions [steps+1, C, nb, 3] of every clip of ``lib`` at the control times 0, dt, ..."""
+    from jaxmotion.motion.motionlib import qpos_qvel, sample
+    t = jnp.arange(steps + 1, dtype=jnp.float32)[:, None] * env.dt
+    c = jnp.arange(lib.num_clips, dtype=jnp.int32)[None, :]
+    ms = sample(lib, jnp.broadcast_to(c, (steps + 1, lib.num_clips)), jnp.broadcast_to(t, (steps + 1, lib.num_clips)))
+    return np.asarray(jax.jit(lambda m: env.frames_of(*qpos_qvel(m)).pos)(ms))
+
+
+def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise: float = 0.0,
+                   seed: int = 0, clips: Sequence | None = None) -> tuple[dict, dict | None]:
+    """(metrics, rollout) of the tracker on ``clips``, the clips at ``paths``, or its own.
+
+    With ``noise`` > 0 the tracker follows perturbed copies (``motion/noise.py``, one seed per
+    clip from ``seed``) and is scored against the clean clips."""
+    from jaxmotion.motion.noise import perturb_clip
     errors: list[dict] = []
     if paths:
-        lib, names, errors = load_eval_clips(paths, learner.env.character)
-        if lib is None:
+        clips, names, errors = load_eval_clips(paths, learner.env.character)
+        if not clips:
             return {"clips_total": 0, "successes": 0, "success_rate": float("nan"), "clips": [], "errors": errors}, None
+    elif clips is None and learner.cfg.env.init_motions:
+        clips = load_clips(learner.cfg.env.init_motions, learner.env.character)
+    if clips is None:
+        if noise:
+            raise ValueError("noise needs the tracked clips themselves (give paths or clips)")
+        clean = learner.env.init_lib
+        names = list(clean.clip_paths or clean.clip_names)
+        tracked = clean
     else:
-        lib, names = None, list(learner.env.init_lib.clip_paths or learner.env.init_lib.clip_names)
-    env = eval_env(learner, lib)
+        names = names if paths else [c.path or c.name for c in clips]
+        clean = MotionLib.from_clips(list(clips))
+        rngs = [np.random.default_rng([seed, i]) for i in range(len(clips))]
+        tracked = MotionLib.from_clips([perturb_clip(c, noise, r) for c, r in zip(clips, rngs)]) if noise else clean
+    env = eval_env(learner, tracked)
     ro = track_rollout(learner, ts, env)
-    return {**summarize(ro, names), "errors": errors}, ro
+    if noise:
+        ro["ref"] = clean_reference(env, clean, ro["ref"].shape[0] - 1)
+        # Failure is judged against the clean clip as well: 0.5 m mean error at any played frame.
+        err = np.linalg.norm(ro["sim"] - ro["ref"], axis=-1).mean(-1)
+        ro["failed"] = ro["failed"] | ((err > FAIL_MEAN_M) & ro["played"]).any(0)
+    return {**summarize(ro, names), "noise": float(noise), "errors": errors}, ro

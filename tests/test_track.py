@@ -154,8 +154,31 @@ def test_unusable_clips_are_reported_not_raised(tmp_path):
     from jaxmotion.track_eval import load_eval_clips
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
-    lib, names, errors = load_eval_clips([bad, tmp_path / "missing.json"], character())
-    assert lib is None and names == [] and {Path(e["path"]).name for e in errors} == {"bad.json", "missing.json"}
+    clips, names, errors = load_eval_clips([bad, tmp_path / "missing.json"], character())
+    assert clips == [] and names == [] and {Path(e["path"]).name for e in errors} == {"bad.json", "missing.json"}
+
+
+def test_noise_is_reproducible_and_zero_leaves_the_clip_alone():
+    from jaxmotion.motion.noise import PoseNoise, perturb_clip
+    clip = _moving_clip(90)
+    assert perturb_clip(clip, 0.0, np.random.default_rng(0)) is clip
+    a = perturb_clip(clip, 1.0, np.random.default_rng(5))
+    b = perturb_clip(clip, 1.0, np.random.default_rng(5))
+    c = perturb_clip(clip, 1.0, np.random.default_rng(6))
+    np.testing.assert_array_equal(a.body_pos, b.body_pos)
+    assert not np.array_equal(a.body_pos, c.body_pos)
+    d = a.root_pos - clip.root_pos
+    # A constant height offset of 7.5 cm either way; jitter stronger along the depth axis (x).
+    assert abs(abs(np.median(d[:, 2])) - 0.075) < 1e-9
+    assert d[:, 0].std() > 2.0 * d[:, 1].std()
+    assert 0.04 < d[:, 0].std() < 0.12
+    # Dropped frames repeat the previous one; about 5% of them at level 1.
+    same = np.all(a.dof_pos[1:] == a.dof_pos[:-1], axis=-1)
+    assert 0 < same.sum() < 0.15 * len(same)
+    quiet = perturb_clip(clip, 1.0, np.random.default_rng(5), PoseNoise(drop_rate=0.0, joint_deg=0.0, vertical_m=0.0))
+    np.testing.assert_allclose(quiet.dof_pos, clip.dof_pos)
+    with pytest.raises(ValueError):
+        perturb_clip(clip, -1.0, np.random.default_rng(0))
 
 
 def test_short_tracking_training_beats_untrained_policies():
@@ -193,6 +216,8 @@ def test_short_tracking_training_beats_untrained_policies():
         for _ in range(iters // chunk):
             ts, _ = run(ts)
         played, err, res = score(learner, ts)
+        noisy, _ = TE.evaluate_clips(learner, ts, clips=clips, noise=1.0)
+    assert noisy["noise"] == 1.0 and noisy["clips_total"] == 2 and all(c["played"] > 0 for c in noisy["clips"])
     base_played = np.array([b[0] for b in base])
     base_err = np.array([b[1] for b in base])
     print(f"frames tracked within 0.5 m: untrained {base_played}, trained {played}; g-MPJPE (mm) untrained "
