@@ -67,9 +67,10 @@ def incremental(scratch: str, meta: str) -> TrainConfig:
 
 # ---- motion tracking (Perpetual Humanoid Control; notes phc.md §7) ---------------------------------
 # Development split: held out of training, each with a close sibling in training (notes phc.md §7).
-# The sword-and-shield clips (17 bodies) need the sword and shield dropped first, which the loader
-# does not do yet, so the ASE part of the split is not used.
-TRACK_DEV = (
+# The sword-and-shield clips (17 bodies) are tracked with the sword, shield and wrist dropped.
+ASE = "ase_sword_shield/RL_Avatar_"
+TRACK_DEV = tuple(ASE + n + "_Motion.npy" for n in ("Atk_SlashLeft", "Sword_ParryBackward03", "Shield_BlockLeft",
+                                                      "RunLeft", "Dodgle_Right", "TurnRight90", "Fall_SpinRight")) + (
     "compositemotion/locomotion/lafan1_walk1_subject5_5740_6830.json",
     "compositemotion/locomotion/crouch_lafan1_walk3_subject5_2490_2735.json",
     "compositemotion/aiming/lafan1_aiming2_subject3_2940_3575.json",
@@ -79,7 +80,17 @@ TRACK_DEV = (
     "deepmimic/humanoid3d_getup_faceup.txt",
     "isaacgymenvs/amp_humanoid_walk.npy",
 )
-# Every 15-body clip of the shared data not in the dev split; the duplicates of notes §7
+_ASE_CLIPS = (
+    "Atk_2xCombo01", "Atk_3xCombo01", "Atk_Jump", "Atk_Kick", "Atk_ShieldCharge", "Atk_ShieldSwipe01",
+    "Atk_ShieldSwipe02", "Atk_SlashDown", "Atk_SlashLeft", "Atk_SlashRight", "Atk_SlashUp", "Atk_Spin", "Atk_Stab",
+    "Counter_Atk01", "Dodge_Backward", "Dodgle_Left", "Dodgle_Right", "Fall_Backward", "Fall_Left", "Fall_Right",
+    "Fall_SpinLeft", "Fall_SpinRight", "Idle_Alert", "Idle_Battle", "Idle_Ready", "RunBackward", "RunForward",
+    "RunLeft", "RunRight", "Shield_BlockBackward", "Shield_BlockCrouch", "Shield_BlockDown", "Shield_BlockLeft",
+    "Shield_BlockRight", "Shield_BlockUp", "Standoff_Circle", "Standoff_Swing", "Sword_ParryBackward01",
+    "Sword_ParryBackward02", "Sword_ParryBackward03", "Sword_ParryBackward04", "Sword_ParryCrouch", "Sword_ParryDown",
+    "Sword_ParryLeft", "Sword_ParryRight", "Sword_ParryUp", "TurnLeft90", "TurnRight180", "TurnRight90",
+    "WalkBackward01", "WalkForward01", "WalkRight01")
+# Every clip of the shared data not in the dev split (sword-and-shield ones without their props); the duplicates of notes §7
 # (iccgan/punch = gym/punch, amp_humanoid_backflip = deepmimic backflip) counted once.
 TRACK_TRAIN = tuple(
     p for p in (
@@ -94,7 +105,8 @@ TRACK_TRAIN = tuple(
         + ["deepmimic/humanoid3d_" + n + ".txt" for n in ("backflip", "cartwheel", "crawl", "dance_a", "dance_spin",
                                                           "getup_facedown", "jump", "kick", "punch", "roll", "run",
                                                           "sideflip", "walk")]
-        + ["isaacgymenvs/amp_humanoid_" + n + ".npy" for n in ("cartwheel", "run")])
+        + ["isaacgymenvs/amp_humanoid_" + n + ".npy" for n in ("cartwheel", "run")]
+        + [ASE + n + "_Motion.npy" for n in _ASE_CLIPS])
     if p not in TRACK_DEV)
 
 
@@ -104,7 +116,7 @@ def track(clips: tuple[str, ...], goal: str = "rotation", iterations: int = 5000
     a fixed σ = e^-2.9 as the authors'), sized for a CPU (256-256 networks; the paper's are 1024-512-256)."""
     from jaxmotion.tasks import TrackConfig
     env = EnvConfig(init_motions=clips, groups=(GroupConfig(name="full", motions=clips, frames=10),),
-                    episode_steps=300, policy_frames=1, early_termination=False,
+                    episode_steps=300, policy_frames=1, early_termination=False, drop_props=True,
                     task=TaskConfig(name="track", track=TrackConfig(goal=goal)))
     return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256),
                                               state_dependent_std=False, init_log_std=-2.9),

@@ -126,8 +126,17 @@ def summarize(ro: dict[str, np.ndarray], paths: Sequence[str]) -> dict:
             "success_rate_0.25": ok25 / n if n else float("nan"), **overall, "clips": clips}
 
 
-def load_eval_clips(paths: Sequence[str | Path], character) -> tuple[list, list[str], list[dict]]:
-    """The clips at ``paths`` (files or folders) one by one: (clips, their paths, errors)."""
+def _load(paths, character, drop_props: bool) -> list:
+    from jaxmotion.motion.clip import drop_sword_shield
+    if drop_props and not character.sword_shield:
+        return [drop_sword_shield(c) for c in load_clips(paths, None)]
+    return load_clips(paths, character)
+
+
+def load_eval_clips(paths: Sequence[str | Path], character, drop_props: bool = False
+                    ) -> tuple[list, list[str], list[dict]]:
+    """The clips at ``paths`` (files or folders) one by one: (clips, their paths, errors).
+    ``drop_props``: sword-and-shield clips onto the 15-body humanoid (``clip.drop_sword_shield``)."""
     from jaxmotion.motion.loaders import find_motion_files
     good, names, errors = [], [], []
     for p in paths:
@@ -138,7 +147,7 @@ def load_eval_clips(paths: Sequence[str | Path], character) -> tuple[list, list[
             continue
         for f in files:
             try:
-                good.extend(load_clips([f], character))
+                good.extend(_load([f], character, drop_props))
                 names.append(str(f))
             except (MotionFileError, ValueError, KeyError) as e:
                 errors.append({"path": str(f), "error": str(e)})
@@ -163,11 +172,11 @@ def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise
     from jaxmotion.motion.noise import perturb_clip
     errors: list[dict] = []
     if paths:
-        clips, names, errors = load_eval_clips(paths, learner.env.character)
+        clips, names, errors = load_eval_clips(paths, learner.env.character, learner.cfg.env.drop_props)
         if not clips:
             return {"clips_total": 0, "successes": 0, "success_rate": float("nan"), "clips": [], "errors": errors}, None
     elif clips is None and learner.cfg.env.init_motions:
-        clips = load_clips(learner.cfg.env.init_motions, learner.env.character)
+        clips = _load(learner.cfg.env.init_motions, learner.env.character, learner.cfg.env.drop_props)
     if clips is None:
         if noise:
             raise ValueError("noise needs the tracked clips themselves (give paths or clips)")

@@ -224,3 +224,21 @@ def test_short_tracking_training_beats_untrained_policies():
           f"{base_err.round(1)}, trained {err:.1f}; {res['successes']}/{res['clips_total']} clips")
     assert played >= base_played.max()
     assert err < base_err.min() - (base_err.max() - base_err.min())
+
+
+def test_sword_and_shield_clips_onto_the_humanoid():
+    """Dropping the sword, shield and wrist keeps every shared link where the 17-body clip has it
+    (the hand's orientation aside: its wrist is gone)."""
+    from jaxmotion.motion.clip import drop_sword_shield
+    from jaxmotion.physics.character import character
+    ss = make_test_clip(12, 30.0, sword_shield=True, dof_pos=0.2 * np.sin(np.arange(12)[:, None] + np.arange(31)[None]))
+    hum = drop_sword_shield(ss)
+    assert not hum.sword_shield and hum.dof_pos.shape == (12, 28)
+    c15, c17 = character(False), character(True)
+    shared = [n for n in c15.body_names]
+    idx17 = [c17.body_index(n) for n in shared]
+    np.testing.assert_allclose(hum.body_pos, ss.body_pos[:, idx17], atol=1e-9)
+    not_hand = [i for i, n in enumerate(shared) if n != "right_hand"]
+    np.testing.assert_allclose(np.abs(np.sum(hum.body_quat[:, not_hand] * ss.body_quat[:, idx17][:, not_hand], -1)),
+                               1.0, atol=1e-9)
+    assert drop_sword_shield(hum) is hum

@@ -83,6 +83,9 @@ class EnvConfig:
     """|qvel| above this counts as unstable physics: the environment is reset."""
     task: TaskConfig = TaskConfig()
     """The task the character performs besides imitating (``tasks/``); 'imitate' for none."""
+    drop_props: bool = False
+    """Load sword-and-shield clips (17 bodies) onto the 15-body humanoid by dropping the sword,
+    the shield and the right wrist (``motion.clip.drop_sword_shield``)."""
 
 
 @struct.dataclass
@@ -150,10 +153,11 @@ class HumanoidEnv:
             self.groups.append(resolve_group({"name": g.name, "links": links, "anchor": anchor}, ch))
         self.group_idx = [group_indices(g, ch) for g in self.groups]
         if motion_libs is None:
-            motion_libs = [load_motionlib(g.motions, ch) for g in cfg.groups]
+            motion_libs = [load_motionlib(g.motions, ch, drop_props=cfg.drop_props) for g in cfg.groups]
         self.motion_libs = tuple(motion_libs)
         if init_lib is None:
-            init_lib = load_motionlib(cfg.init_motions, ch) if cfg.init_motions else self.motion_libs[0]
+            init_lib = (load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props) if cfg.init_motions
+                        else self.motion_libs[0])
         self.init_lib = init_lib
         self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
         lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]

@@ -226,3 +226,17 @@ def make_test_clip(num_frames: int = 31, fps: float = 30.0, *, root_vel=(1.0, 0.
     return build_clip(name=name, path="", format="generated", fps=fps, loop=loop,
                       sword_shield=sword_shield, root_pos=root_pos, root_quat=root_quat,
                       dof_pos=dof_pos)
+
+
+def drop_sword_shield(clip: Clip) -> Clip:
+    """A sword-and-shield clip (17 bodies) on the 15-body humanoid: the sword, the shield and the
+    right wrist's three hinges dropped, every other joint angle kept (the two characters share
+    their other links and offsets); link poses rebuilt by the 15-body forward kinematics. A clip
+    of the 15-body humanoid comes back unchanged."""
+    if not clip.sword_shield:
+        return clip
+    names15 = set(character(False).joint_names)
+    keep = [i for i, n in enumerate(character(True).joint_names) if n in names15]
+    return build_clip(name=clip.name, path=clip.path, format=clip.format, fps=clip.fps, loop=clip.loop,
+                      sword_shield=False, root_pos=clip.root_pos, root_quat=clip.root_quat,
+                      dof_pos=clip.dof_pos[:, keep])

@@ -150,9 +150,13 @@ class MotionLib:
 
 def load_motionlib(paths: str | os.PathLike | Iterable[str | os.PathLike],
                    character: Character | None = None,
-                   weights: Sequence[float] | None = None) -> MotionLib:
-    """Loads files/folders (see ``loaders.load_clips``) into a ``MotionLib``."""
+                   weights: Sequence[float] | None = None, drop_props: bool = False) -> MotionLib:
+    """Loads files/folders (see ``loaders.load_clips``) into a ``MotionLib``. ``drop_props``: load
+    sword-and-shield clips onto the 15-body humanoid (``clip.drop_sword_shield``)."""
+    from jaxmotion.motion.clip import drop_sword_shield
     from jaxmotion.motion.loaders import load_clips
+    if drop_props and character is not None and not character.sword_shield:
+        return MotionLib.from_clips([drop_sword_shield(c) for c in load_clips(paths, None)], weights)
     return MotionLib.from_clips(load_clips(paths, character), weights)
 
 
