@@ -113,11 +113,12 @@ TRACK_TRAIN = tuple(
 def track(clips: tuple[str, ...], goal: str = "rotation", iterations: int = 5000) -> TrainConfig:
     """A tracker of ``clips`` (PHC's imitation reward + a 10-frame full-body motion prior, ω 0.5 /
     0.5; reference-state init at random times; no contact termination, the distance rule instead;
-    a fixed σ = e^-2.9 as the authors'), sized for a CPU (256-256 networks; the paper's are 1024-512-256)."""
+    a fixed σ = e^-2.9 as the authors'; hard-negative mining every 2M samples), sized for a CPU
+    (256-256 networks; the paper's are 1024-512-256)."""
     from jaxmotion.tasks import TrackConfig
     env = EnvConfig(init_motions=clips, groups=(GroupConfig(name="full", motions=clips, frames=10),),
                     episode_steps=300, policy_frames=1, early_termination=False, drop_props=True,
                     task=TaskConfig(name="track", track=TrackConfig(goal=goal)))
     return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256),
                                               state_dependent_std=False, init_log_std=-2.9),
-                       ppo=PPOConfig(), iterations=iterations, chunk=10, eval_every=0)
+                       ppo=PPOConfig(), iterations=iterations, chunk=10, eval_every=0, hard_negatives_every=50)

@@ -47,6 +47,11 @@ def track_rollout(learner, ts, env: HumanoidEnv) -> dict[str, np.ndarray]:
     positions [T+1, C, nb, 3] (the start frame first), ``played`` [T+1, C] (the frame belongs to
     the clip's episode), ``failed`` [C], ``frames`` [C] (the clip's frame count at the control
     rate), and ``qpos``/``ref_qpos`` [T+1, C, nq] for rendering."""
+    return _rollout_program(learner, env)(ts)
+
+
+def _rollout_program(learner, env: HumanoidEnv):
+    """``track_rollout`` compiled for one learner and eval scene: a function of the state only."""
     lib = env.init_lib
     C = lib.num_clips
     dur = np.asarray(lib.clip_duration)
@@ -77,9 +82,12 @@ def track_rollout(learner, ts, env: HumanoidEnv) -> dict[str, np.ndarray]:
         return (first(state.hist.pos[:, -1], sim), first(ref0.pos, ref), first(alive0, played), failed.any(0),
                 first(state.data.qpos, qpos), first(ref_qpos(state.goal), rq))
 
-    sim, ref, played, failed, qpos, rq = jax.device_get(run(ts))
-    return {"sim": sim, "ref": ref, "played": played, "failed": failed, "frames": frames, "qpos": qpos,
-            "ref_qpos": rq}
+    def program(ts):
+        sim, ref, played, failed, qpos, rq = jax.device_get(run(ts))
+        return {"sim": sim, "ref": ref, "played": played, "failed": failed, "frames": frames, "qpos": qpos,
+                "ref_qpos": rq}
+
+    return program
 
 
 def _ref_qpos(env, goal):
@@ -188,11 +196,48 @@ def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise
         clean = MotionLib.from_clips(list(clips))
         rngs = [np.random.default_rng([seed, i]) for i in range(len(clips))]
         tracked = MotionLib.from_clips([perturb_clip(c, noise, r) for c, r in zip(clips, rngs)]) if noise else clean
-    env = eval_env(learner, tracked)
-    ro = track_rollout(learner, ts, env)
+    # One compiled program per learner and clip set: evaluating several states (seeds, checkpoints,
+    # hard-negative rounds) compiles once.
+    cache = learner.__dict__.setdefault("_track_eval_cache", {})
+    key = (tuple(names), float(noise), int(seed))
+    if key not in cache:
+        env = eval_env(learner, tracked)
+        cache[key] = (env, _rollout_program(learner, env))
+    env, program = cache[key]
+    ro = program(ts)
     if noise:
         ro["ref"] = clean_reference(env, clean, ro["ref"].shape[0] - 1)
         # Failure is judged against the clean clip as well: 0.5 m mean error at any played frame.
         err = np.linalg.norm(ro["sim"] - ro["ref"], axis=-1).mean(-1)
         ro["failed"] = ro["failed"] | ((err > FAIL_MEAN_M) & ro["played"]).any(0)
     return {**summarize(ro, names), "noise": float(noise), "errors": errors}, ro
+
+
+HARD_FILE = "hard_clips.json"
+
+
+def hard_negative_update(learner, ts, run_dir: Path | None = None):
+    """Hard-negative mining (PHC; the authors' soft rule): every training clip once from t = 0; a
+    clip that fails adds to its cumulative failure count, and resets pick clip ``c`` with
+    probability ∝ base weight × (1 + failures of c), so failed clips come up more often while
+    none is dropped. Writes the current hard set to ``run_dir/hard_clips.json``; returns the
+    updated state and the failed clips' paths."""
+    import json
+
+    res, _ = evaluate_clips(learner, ts)
+    failed = np.asarray([not c["success"] for c in res["clips"]])
+    fails = np.asarray(jax.device_get(ts.clip_fails)) + failed.astype(np.int32)
+    base = np.asarray(learner.env.init_lib.clip_weight, np.float64)
+    w = base * (1.0 + fails)
+    w = w / w.sum()
+    put = lambda x, like: jax.device_put(jnp.asarray(x, like.dtype), like.sharding)
+    ts = ts.replace(clip_fails=put(fails, ts.clip_fails), clip_weights=put(w, ts.clip_weights))
+    hard = [c["path"] for c, f in zip(res["clips"], failed) if f]
+    if run_dir is not None:
+        doc = {"iteration": int(ts.iteration), "failed": hard, "success_rate": res["success_rate"],
+               "cumulative_failures": {c["path"]: int(n) for c, n in zip(res["clips"], fails)},
+               "reset_probability": {c["path"]: float(p) for c, p in zip(res["clips"], w)}}
+        tmp = Path(run_dir) / (HARD_FILE + ".tmp")
+        tmp.write_text(json.dumps(doc, indent=2))
+        tmp.replace(Path(run_dir) / HARD_FILE)
+    return ts, hard

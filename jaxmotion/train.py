@@ -161,6 +161,12 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         bar.set_postfix(post, refresh=False)
         bar.update(cfg.chunk)
         done = int(ts.iteration) >= cfg.iterations
+        if cfg.hard_negatives_every and chunks % cfg.hard_negatives_every == 0 and not done:
+            # Before the checkpoint, so that a resumed run samples as the uninterrupted one.
+            from jaxmotion.track_eval import hard_negative_update
+            ts, hard = hard_negative_update(learner, ts, run_dir)
+            bar.write(f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of "
+                      f"{learner.env.init_lib.num_clips} clips failed")
         if done or chunks % cfg.checkpoint_every == 0 or stop_after_chunks == chunks:
             ckpt.save(mgr, int(ts.iteration), ts)
         if cfg.eval_every and (chunks % cfg.eval_every == 0 or done):

@@ -135,6 +135,9 @@ class TrainConfig:
     meta: str = ""
     """Incremental learning: a run folder (or a folder of runs: the newest) whose frozen policy
     is the meta policy (``meta.py``); empty: none."""
+    hard_negatives_every: int = 0
+    """Tracking: every this many chunks, run every clip once from t = 0 and reset to the clips it
+    failed more often (``track_eval.hard_negative_update``); 0: never."""
 
     @property
     def samples_per_iteration(self) -> int:
@@ -159,6 +162,10 @@ class TrainState:
     iteration: jax.Array
     meta: Any = None
     """The frozen meta policy's ``PolicyState`` (incremental learning), else None."""
+    clip_fails: Any = None
+    """Hard-negative mining: cumulative failures [C] of every tracked clip, else None."""
+    clip_weights: Any = None
+    """Hard-negative mining: the reset's clip probabilities [C] (``init_lib.clip_weight`` scaled), else None."""
 
 
 @struct.dataclass
@@ -216,6 +223,9 @@ class Learner:
             optax.multi_transform({"actor": optax.adam(pc.actor_lr), "critic": optax.adam(pc.critic_lr)},
                                   {"actor": "actor", "critic": "critic"}))
         self.disc_optimizer = optax.adam(cfg.disc.lr)
+        self.hard_negatives = cfg.hard_negatives_every > 0
+        if self.hard_negatives and cfg.env.task.name != "track":
+            raise ValueError("hard_negatives_every needs the track task (env.task.name=track)")
         self._check_batch()
         self._check_fall_value()
 
@@ -253,7 +263,9 @@ class Learner:
             obs_norm=N.normalizer_init(self.body_obs_size),
             disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
             popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32),
-            meta=self.meta.state if self.meta else None)
+            meta=self.meta.state if self.meta else None,
+            clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
+            clip_weights=self.env.init_lib.clip_weight if self.hard_negatives else None)
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
@@ -308,7 +320,8 @@ class Learner:
         """
         batch_step = self.batch_step(mesh)
         rng, key, k_pool = jax.random.split(ts.rng, 3)
-        pool = jax.vmap(self.env.reset)(jax.random.split(k_pool, self.cfg.ppo.num_envs))
+        pool = jax.vmap(self.env.reset, in_axes=(0, None))(jax.random.split(k_pool, self.cfg.ppo.num_envs),
+                                                           ts.clip_weights)
 
         def step(carry, key):
             env_state, obs = carry

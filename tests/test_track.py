@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -181,7 +182,7 @@ def test_noise_is_reproducible_and_zero_leaves_the_clip_alone():
         perturb_clip(clip, -1.0, np.random.default_rng(0))
 
 
-def test_short_tracking_training_beats_untrained_policies():
+def test_short_tracking_training_beats_untrained_policies(tmp_path):
     """A few CPU minutes of training on two short clips must track them from t = 0 longer and
     closer (g-MPJPE over the frames played) than the same networks untrained, by more than the
     spread of untrained seeds."""
@@ -198,7 +199,8 @@ def test_short_tracking_training_beats_untrained_policies():
                       net=NetConfig(policy_hidden=(64, 64), critic_hidden=(64, 64), disc_hidden=(32, 32), disc_heads=4,
                                     init_log_std=-2.0, state_dependent_std=False),
                       ppo=PPOConfig(num_envs=32, horizon=8, minibatch_size=64, epochs=4, actor_lr=2e-4, critic_lr=1e-3),
-                      disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk)
+                      disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk,
+                      hard_negatives_every=10_000)  # the state carries the sampler; the loop below never mines
 
     def score(learner, ts):
         res, _ = TE.evaluate_clips(learner, ts)
@@ -217,6 +219,14 @@ def test_short_tracking_training_beats_untrained_policies():
             ts, _ = run(ts)
         played, err, res = score(learner, ts)
         noisy, _ = TE.evaluate_clips(learner, ts, clips=clips, noise=1.0)
+        # Hard negatives: the clips an untrained policy fails are counted and sampled more often.
+        mined, hard = TE.hard_negative_update(learner, untrained[1], tmp_path)
+    fails = np.asarray(mined.clip_fails)
+    assert list(fails) == [int(not c["success"]) for c in base[1][2]["clips"]] and len(hard) == fails.sum()
+    w = np.asarray(mined.clip_weights)
+    np.testing.assert_allclose(w, (1 + fails) / (1 + fails).sum(), rtol=1e-6)
+    doc = json.loads((tmp_path / TE.HARD_FILE).read_text())
+    assert doc["failed"] == hard and sum(doc["cumulative_failures"].values()) == fails.sum()
     assert noisy["noise"] == 1.0 and noisy["clips_total"] == 2 and all(c["played"] > 0 for c in noisy["clips"])
     base_played = np.array([b[0] for b in base])
     base_err = np.array([b[1] for b in base])
@@ -242,3 +252,14 @@ def test_sword_and_shield_clips_onto_the_humanoid():
     np.testing.assert_allclose(np.abs(np.sum(hum.body_quat[:, not_hand] * ss.body_quat[:, idx17][:, not_hand], -1)),
                                1.0, atol=1e-9)
     assert drop_sword_shield(hum) is hum
+
+
+def test_resets_follow_the_hard_negative_weights():
+    lib = MotionLib.from_clips([_moving_clip(), make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])
+    cfg = EnvConfig(groups=(GroupConfig(name="full"),), policy_frames=1, task=TaskConfig(name="track"))
+    env = HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
+    with jit_enabled():
+        clips = jax.jit(lambda k, w: jax.vmap(lambda kk: env.reset(kk, w)[0].goal.clip)(jax.random.split(k, 4000)))
+        freq = float(np.mean(np.asarray(clips(jax.random.PRNGKey(0), jnp.asarray([0.2, 0.8])))))
+        even = float(np.mean(np.asarray(clips(jax.random.PRNGKey(0), lib.clip_weight))))
+    assert abs(freq - 0.8) < 0.03 and abs(even - 0.5) < 0.03

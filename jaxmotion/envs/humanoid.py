@@ -198,10 +198,12 @@ class HumanoidEnv:
         return self.cfg.physics.control_dt
 
     # ---- reset -------------------------------------------------------------------------
-    def reset(self, rng: jax.Array) -> tuple[EnvState, jax.Array]:
-        """Reference-state initialisation at a random clip time; history from the clip's past."""
+    def reset(self, rng: jax.Array, clip_weight: jax.Array | None = None) -> tuple[EnvState, jax.Array]:
+        """Reference-state initialisation at a random clip time; history from the clip's past.
+        ``clip_weight`` [C] replaces the init clips' probabilities (hard-negative mining)."""
         rng, k = jax.random.split(rng)
-        clip, t = sample_times(self.init_lib, k, 1)
+        lib = self.init_lib if clip_weight is None else self.init_lib.replace(clip_weight=clip_weight)
+        clip, t = sample_times(lib, k, 1)
         return self.reset_at(rng, clip[0], t[0])
 
     def reset_at(self, rng: jax.Array, clip: jax.Array, t: jax.Array) -> tuple[EnvState, jax.Array]:
