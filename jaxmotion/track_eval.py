@@ -189,7 +189,8 @@ def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise
         if noise:
             raise ValueError("noise needs the tracked clips themselves (give paths or clips)")
         clean = learner.env.init_lib
-        names = list(clean.clip_paths or clean.clip_names)
+        paths_ = clean.clip_paths or ("",) * clean.num_clips
+        names = [p or n for p, n in zip(paths_, clean.clip_names)]  # clips built in code have no path
         tracked = clean
     else:
         names = names if paths else [c.path or c.name for c in clips]
