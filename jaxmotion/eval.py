@@ -340,13 +340,18 @@ def main(argv: list[str] | None = None) -> int:
         from jaxmotion.plot import plot_meta_weights
         print(f"meta weights: {plot_meta_weights(learner, ro, args.run / 'meta_weights.png')}")
     if not args.no_plots:
-        from jaxmotion.plot import plot_run
-        try:
-            print(f"plots: {len(plot_run(args.run))} PNGs in {args.run}")
-        except FileNotFoundError as e:
-            print(f"plots skipped: {e}", file=sys.stderr)
+        _learning_curves(args.run)
     # --- end visualisation ---
     return 0
+
+
+def _learning_curves(run: Path) -> None:
+    """The run's learning-curve PNGs (``plot.plot_run``), or why there are none."""
+    from jaxmotion.plot import plot_run
+    try:
+        print(f"plots: {len(plot_run(run))} PNGs in {run}")
+    except FileNotFoundError as e:
+        print(f"plots skipped: {e}", file=sys.stderr)
 
 
 def _main_track(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainState) -> int:
@@ -376,11 +381,7 @@ def _main_track(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: T
                              learner_group_colors(learner))
         print(f"video: {write_video(frames, args.video, 1.0 / learner.env.dt)} (clip 0, its reference as the ghost)")
     if not args.no_plots:
-        from jaxmotion.plot import plot_run
-        try:
-            print(f"plots: {len(plot_run(args.run))} PNGs in {args.run}")
-        except FileNotFoundError as e:
-            print(f"plots skipped: {e}", file=sys.stderr)
+        _learning_curves(args.run)
     return 0
 
 

@@ -183,7 +183,9 @@ def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise
         clips, names, errors = load_eval_clips(paths, learner.env.character, learner.cfg.env.drop_props)
         if not clips:
             return {"clips_total": 0, "successes": 0, "success_rate": float("nan"), "clips": [], "errors": errors}, None
-    elif clips is None and learner.cfg.env.init_motions:
+    elif clips is None and noise and learner.cfg.env.init_motions:
+        # Only perturbing needs the clips themselves; otherwise the scene's library already holds them
+        # (no reloading of every clip at each hard-negative round).
         clips = _load(learner.cfg.env.init_motions, learner.env.character, learner.cfg.env.drop_props)
     if clips is None:
         if noise:
