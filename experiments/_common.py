@@ -122,3 +122,34 @@ def track(clips: tuple[str, ...], goal: str = "rotation", iterations: int = 5000
     return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256),
                                               state_dependent_std=False, init_log_std=-2.9),
                        ppo=PPOConfig(), iterations=iterations, chunk=10, eval_every=0, hard_negatives_every=50)
+
+
+# ---- two-player sports (Won et al. 2021; notes won2021.md §7) ------------------------------------
+BOXING_CLIPS = ("deepmimic/humanoid3d_punch.txt", "compositemotion/iccgan/punch.json",
+                "deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_jog.txt")
+FENCING_CLIPS = tuple(ASE + n + "_Motion.npy" for n in (
+    "Idle_Alert", "Idle_Battle", "Idle_Ready", "Standoff_Circle", "Standoff_Swing", "WalkForward01",
+    "WalkBackward01", "WalkRight01", "Atk_Stab", "Atk_SlashDown", "Atk_SlashLeft", "Atk_SlashRight",
+    "Atk_SlashUp", "Counter_Atk01", "Sword_ParryUp", "Shield_BlockUp"))
+
+
+def bout(sport: str, round_s: float, iterations: int = 6000, num_envs: int = 32) -> TrainConfig:
+    """Self-play of one shared policy, latest against latest, sized for a CPU: ``num_envs`` bouts
+    x 2 players x horizon 8 per iteration, 256-256 networks, the paper's γ 0.99 and λ 0.95, one
+    objective (the rewards summed with the paper's weights, as Eq. 1 / Eq. 7), penalties paid by
+    the task (no ``terminate_reward``; the value after a bout's end is 0). 240 Hz physics, 30 Hz
+    control. No imitation pretraining or mixture of experts yet: the policy is the learner's
+    Gaussian MLP (a later issue), so what this learns is reach and contact, not boxing style."""
+    from jaxmotion.physics.arena import ArenaConfig
+    from jaxmotion.physics.sim import PhysicsConfig
+    fencing = sport == "fencing"
+    env = EnvConfig(physics=PhysicsConfig(sim_hz=240.0, sword_shield=fencing),
+                    init_motions=FENCING_CLIPS if fencing else BOXING_CLIPS, groups=(), players=2,
+                    arena=ArenaConfig(sport=sport), task=TaskConfig(name=sport), policy_frames=1,
+                    episode_steps=int(round(round_s * 30)))
+    return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256),
+                                              state_dependent_std=False, init_log_std=-2.5),
+                       ppo=PPOConfig(num_envs=num_envs, horizon=8, minibatch_size=128, epochs=5, gamma=0.99,
+                                     lam=0.95, actor_lr=1e-5, critic_lr=1e-4, multi_objective=False,
+                                     terminate_reward=None, absorbing_termination=False),
+                       iterations=iterations, chunk=10, eval_every=0)

@@ -31,6 +31,7 @@ from jaxmotion.algos import gae as G
 from jaxmotion.algos import normalizer as N
 from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
+from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
 from jaxmotion.meta import Meta, PolicyState, resolve_run
 from jaxmotion.nets import networks as nets
@@ -81,12 +82,13 @@ class PPOConfig:
     groups' ``weight`` and the task's weights by the authors' rule (``tasks.combine_weights``)."""
     per_objective_clip: bool = False
     """True: clip each ω_k Ā_k term separately (the authors' code) instead of Eq. 9."""
-    terminate_reward: float = -2.0
+    terminate_reward: float | None = -2.0
     """Reward of every objective on a terminating step, and (absorbing) on every step after it.
     It must lie below the lowest reward an objective can pay (-1 for a discriminator), or a
     policy whose rewards sit at that floor loses nothing by falling: with -1, a saturated
     discriminator made the fall's value -1/(1-gamma) = -20 equal to staying up (measured). The
-    authors' code uses -1 with a value of 0 after the fall."""
+    authors' code uses -1 with a value of 0 after the fall. None: the step keeps its rewards (a
+    task that pays its own penalties, as the two-player sports do)."""
     absorbing_termination: bool = True
     """True: a fall is an absorbing state that keeps paying ``terminate_reward`` (its value is
     ``terminate_reward / (1 - gamma)``), so with ``terminate_reward`` below every reward a fall
@@ -141,7 +143,8 @@ class TrainConfig:
 
     @property
     def samples_per_iteration(self) -> int:
-        return self.ppo.num_envs * self.ppo.horizon
+        """Samples per iteration: every player of every environment for ``horizon`` steps."""
+        return self.ppo.num_envs * self.ppo.horizon * self.env.players
 
 
 @struct.dataclass
@@ -192,7 +195,9 @@ class Learner:
         self.cfg = cfg
         if cfg.meta:
             resolve_run(cfg.meta)  # a missing meta run fails before any clip is loaded
-        self.env = env if env is not None else HumanoidEnv(cfg.env)
+        self.env = env if env is not None else make_env(cfg.env)
+        self.players = getattr(self.env, "players", 1)
+        """Players per environment: each is a sample of its own (one shared policy, self-play)."""
         task = self.env.task
         self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)
         n_obj = len(self.objective_names)
@@ -235,6 +240,8 @@ class Learner:
     def _check_fall_value(self):
         pc = self.cfg.ppo
         low = min([self.MIN_REWARD] * bool(self.cfg.env.groups) + [self.env.task.min_reward])
+        if pc.absorbing_termination and pc.terminate_reward is None:
+            raise ValueError("ppo.absorbing_termination needs a ppo.terminate_reward")
         if pc.absorbing_termination and not pc.terminate_reward < low:
             raise ValueError(
                 f"ppo.terminate_reward ({pc.terminate_reward}) must be below the lowest reward an "
@@ -243,9 +250,9 @@ class Learner:
 
     def _check_batch(self):
         pc = self.cfg.ppo
-        n = pc.num_envs * pc.horizon
+        n = pc.num_envs * pc.horizon * self.players
         if n % pc.minibatch_size or n % self.cfg.disc.minibatch_size:
-            raise ValueError(f"num_envs*horizon ({n}) must be a multiple of the minibatch sizes "
+            raise ValueError(f"num_envs*horizon*players ({n}) must be a multiple of the minibatch sizes "
                              f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})")
 
     # ---- init ----------------------------------------------------------------------------
@@ -334,6 +341,8 @@ class Learner:
 
         keys = jax.random.split(key, self.cfg.ppo.horizon)
         (env_state, obs), traj = jax.lax.scan(step, (ts.env_state, ts.obs), keys)
+        if self.players > 1:  # [T, B, P, ...] -> [T, B * P, ...]: every player is a sample
+            traj = jax.tree.map(lambda x: x.reshape((x.shape[0], x.shape[1] * x.shape[2]) + x.shape[3:]), traj)
         return ts.replace(env_state=env_state, obs=obs, rng=rng), traj
 
     # ---- discriminators --------------------------------------------------------------------
@@ -366,7 +375,7 @@ class Learner:
         for g, net in enumerate(self.discs):
             x = N.normalize(ts.disc_norm[g], traj.disc_obs[g].reshape(T * B, -1), None)
             out.append(D.disc_reward(net.apply(ts.disc_params[g], x)).reshape(T, B))
-        return jnp.stack(out, -1)
+        return jnp.stack(out, -1) if out else jnp.zeros((T, B, 0), jnp.float32)
 
     def disc_step(self, ts: TrainState, traj: Transition):
         """Updates every ensemble on this rollout vs fresh reference windows; returns rewards [T,B,G]."""

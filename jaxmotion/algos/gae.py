@@ -108,7 +108,7 @@ def apply_termination(rewards: jax.Array, next_values: jax.Array, terminated: ja
                       absorbing: bool) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     """How a terminating step (a fall) enters GAE; returns (rewards, next_values, term, trunc).
 
-    Every objective is paid ``terminate_reward`` on the terminating step. With ``absorbing``, the
+    Every objective is paid ``terminate_reward`` on the terminating step (None: its own rewards). With ``absorbing``, the
     fall leads to an absorbing state that keeps paying it, so its value
     ``terminate_reward / (1 - gamma)`` is bootstrapped and the trace is cut there (passed on as a
     truncation); a ``terminate_reward`` below every reward the objectives can pay then makes a
@@ -117,7 +117,8 @@ def apply_termination(rewards: jax.Array, next_values: jax.Array, terminated: ja
     Args:
       rewards, next_values: ``[T, B, K]``. terminated, truncated: ``[T, B]`` bool.
     """
-    rewards = jnp.where(terminated[..., None], terminate_reward, rewards)
+    if terminate_reward is not None:
+        rewards = jnp.where(terminated[..., None], terminate_reward, rewards)
     term = terminated.astype(jnp.float32)
     trunc = truncated.astype(jnp.float32)
     if absorbing:

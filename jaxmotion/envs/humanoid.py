@@ -28,6 +28,7 @@ from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
 from jaxmotion.motion.motionlib import (MotionLib, load_motionlib, qpos_of, qpos_qvel, sample, sample_times,
                                         sample_windows)
 from jaxmotion.physics import sim
+from jaxmotion.physics.arena import ArenaConfig
 from jaxmotion.physics.fk import LinkFK
 from jaxmotion.physics.character import character
 from jaxmotion.tasks import TaskConfig, make_task
@@ -86,6 +87,10 @@ class EnvConfig:
     drop_props: bool = False
     """Load sword-and-shield clips (17 bodies) onto the 15-body humanoid by dropping the sword,
     the shield and the right wrist (``motion.clip.drop_sword_shield``)."""
+    players: int = 1
+    """1: one character (``HumanoidEnv``); 2: two players in the arena (``envs/bout.py``)."""
+    arena: ArenaConfig = ArenaConfig()
+    """The two-player scene (ring or piste; ``physics/arena.py``); unused with one player."""
 
 
 @struct.dataclass
@@ -258,14 +263,7 @@ class HumanoidEnv:
     def lowest_point(self, qpos: jax.Array) -> jax.Array:
         """Height of the lowest point of the character's spheres, capsules and boxes at ``qpos``."""
         d = mjx.kinematics(self.model, self._data0.replace(qpos=qpos))
-        z, rot = d.geom_xpos[self._body_geoms, 2], d.geom_xmat[self._body_geoms]
-        size, typ = self._geom_size, self._geom_type
-        axis_z = jnp.abs(rot[:, 2, :])  # |z component| of each geom axis
-        low_sphere = z - size[:, 0]
-        low_capsule = z - size[:, 0] - axis_z[:, 2] * size[:, 1]
-        low_box = z - jnp.sum(axis_z * size, -1)
-        low = jnp.where(typ == 2, low_sphere, jnp.where(typ == 3, low_capsule, low_box))
-        return jnp.min(low)
+        return lowest_point(d, self._body_geoms, self._geom_size, self._geom_type)
 
     def poses_of(self, qpos: jax.Array) -> tuple[jax.Array, jax.Array]:
         """Link positions [..., nb, 3] and orientations [..., nb, 4] of generalised positions
@@ -326,6 +324,18 @@ class HumanoidEnv:
         return out_state, StepOut(obs=obs, final_obs=final_obs, disc_obs=dobs, terminated=terminated,
                                   truncated=truncated, unstable=unstable, task_reward=task_reward,
                                   info=task.info)
+
+
+def lowest_point(d: mjx.Data, geoms: jax.Array, size: jax.Array, typ: jax.Array) -> jax.Array:
+    """Height of the lowest point of geoms (spheres, capsules, boxes: ids, sizes, types) in
+    kinematics ``d``."""
+    z, rot = d.geom_xpos[geoms, 2], d.geom_xmat[geoms]
+    axis_z = jnp.abs(rot[:, 2, :])  # |z component| of each geom axis
+    low_sphere = z - size[:, 0]
+    low_capsule = z - size[:, 0] - axis_z[:, 2] * size[:, 1]
+    low_box = z - jnp.sum(axis_z * size, -1)
+    low = jnp.where(typ == 2, low_sphere, jnp.where(typ == 3, low_capsule, low_box))
+    return jnp.min(low)
 
 
 def _last(hist: O.LinkFrames) -> O.LinkFrames:

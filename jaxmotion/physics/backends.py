@@ -46,14 +46,44 @@ def resolve_backend(name: str) -> str:
     return "mujoco" if jax.default_backend() == "cpu" else "mjx"
 
 
-def body_ground_contacts_mjx(m: mujoco.MjModel, data: mjx.Data) -> jax.Array:
-    """[nbody-1] bool: which bodies (world excluded) have a penetrating contact in ``data``."""
+def body_ground_contacts_mjx(m: mujoco.MjModel, data: mjx.Data, floor: str = "floor") -> jax.Array:
+    """[nbody-1] bool: which bodies (world excluded) have a penetrating contact with the floor."""
     contact = data._impl.contact
     geom_body = jnp.asarray(m.geom_bodyid, jnp.int32)
-    body = geom_body[jnp.max(contact.geom, axis=-1)]
-    hit = (contact.dist < 0.0)
+    fid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, floor)
+    body = geom_body[jnp.where(contact.geom[..., 0] == fid, contact.geom[..., 1], contact.geom[..., 0])]
+    hit = (contact.dist < 0.0) & jnp.any(contact.geom == fid, axis=-1)
     touched = jnp.zeros((m.nbody,), bool).at[body].max(hit)
     return touched[1:]
+
+
+def contact_normal_forces_mjx(data: mjx.Data) -> jax.Array:
+    """[ncon] normal force of every contact slot of ``data`` (0 where inactive), as
+    ``mj_contactForce``'s first component: the constraint row's force for a frictionless contact,
+    the sum of the pyramid's edge forces for a pyramidal friction cone."""
+    c, f = data._impl.contact, data._impl.efc_force
+    if c.dim.shape[0] == 0:
+        return jnp.zeros((0,), f.dtype)
+    rows = []
+    for adr, dim in zip(np.asarray(c.efc_address), np.asarray(c.dim)):
+        n = 1 if dim == 1 else 2 * (int(dim) - 1)
+        rows.append(jnp.sum(f[int(adr):int(adr) + n]) if adr >= 0 else jnp.zeros((), f.dtype))
+    return jnp.stack(rows)
+
+
+def channel_forces_mjx(data: mjx.Data, channels) -> jax.Array:
+    """[n_channels] summed normal force of each channel's geom pairs in ``data``."""
+    if not channels:
+        return jnp.zeros((0,), jnp.float32)
+    force = contact_normal_forces_mjx(data)
+    g = data._impl.contact.geom
+    out = []
+    for ch in channels:
+        pairs = jnp.asarray(ch.pairs, jnp.int32)  # [P, 2]
+        match = (((g[:, None, 0] == pairs[None, :, 0]) & (g[:, None, 1] == pairs[None, :, 1]))
+                 | ((g[:, None, 0] == pairs[None, :, 1]) & (g[:, None, 1] == pairs[None, :, 0])))
+        out.append(jnp.sum(jnp.where(jnp.any(match, -1), force, 0.0)))
+    return jnp.stack(out).astype(jnp.float32)
 
 
 class MJXPhysics:
@@ -61,10 +91,24 @@ class MJXPhysics:
 
     name = "mjx"
 
-    def __init__(self, mj: mujoco.MjModel, model: mjx.Model, substeps: int):
+    def __init__(self, mj: mujoco.MjModel, model: mjx.Model, substeps: int, channels=()):
         self.mj = mj
         self.model = model
         self.substeps = substeps
+        self.channels = tuple(channels)
+
+    def step_forces(self, data: mjx.Data, target: jax.Array) -> tuple[mjx.Data, jax.Array, jax.Array]:
+        """As ``step``, plus [n_channels] the maximum over the substeps of each force channel."""
+        data = data.replace(ctrl=target)
+
+        def sub(carry, _):
+            d, fmax = carry
+            d = mjx.step(self.model, d)
+            return (d, jnp.maximum(fmax, channel_forces_mjx(d, self.channels))), None
+
+        f0 = jnp.zeros((len(self.channels),), jnp.float32)
+        (data, forces), _ = jax.lax.scan(sub, (data, f0), None, length=self.substeps)
+        return data, body_ground_contacts_mjx(self.mj, data), forces
 
     def step(self, data: mjx.Data, target: jax.Array) -> tuple[mjx.Data, jax.Array]:
         """Holds ``target`` for ``substeps`` MJX steps; returns (data, body ground contacts).
@@ -81,8 +125,10 @@ def mjx_pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: i
     return data
 
 
-def _with_ground_sensors(mj_xml: str, floor: str = "floor") -> mujoco.MjModel:
-    """The model plus one contact sensor per body (world excluded): number of floor contacts."""
+def _with_ground_sensors(mj_xml: str, floor: str = "floor", channels=()) -> mujoco.MjModel:
+    """The model plus one contact sensor per body (world excluded): number of floor contacts;
+    then, per force channel and geom pair, the contact force of that pair (the largest contact's,
+    in its contact frame: the normal force first)."""
     spec = mujoco.MjSpec.from_string(mj_xml)
     model = spec.compile()
     for b in range(1, model.nbody):
@@ -96,6 +142,18 @@ def _with_ground_sensors(mj_xml: str, floor: str = "floor") -> mujoco.MjModel:
         s.intprm[1] = 0  # no reduction
         s.intprm[2] = 1  # one slot
         s.dim = 1
+    for ch in channels:
+        for g1, g2 in ch.pairs:
+            s = spec.add_sensor()
+            s.type = mujoco.mjtSensor.mjSENS_CONTACT
+            s.objtype = mujoco.mjtObj.mjOBJ_GEOM
+            s.objname = model.geom(g1).name
+            s.reftype = mujoco.mjtObj.mjOBJ_GEOM
+            s.refname = model.geom(g2).name
+            s.intprm[0] = 1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE)
+            s.intprm[1] = 2  # reduce: the contact with the largest force
+            s.intprm[2] = 1
+            s.dim = 3
     return spec.compile()
 
 
@@ -111,8 +169,9 @@ class MujocoPhysics:
     name = "mujoco"
 
     def __init__(self, mj_xml: str, params_from: mujoco.MjModel, model: mjx.Model, substeps: int,
-                 nthread: int | None = None):
-        m = _with_ground_sensors(mj_xml)
+                 nthread: int | None = None, channels=()):
+        self.channels = tuple(channels)
+        m = _with_ground_sensors(mj_xml, channels=self.channels)
         # Settings and servo gains come from ``params_from`` (the same structure, maybe edited).
         m.opt.timestep = params_from.opt.timestep
         m.opt.iterations = params_from.opt.iterations
@@ -152,33 +211,48 @@ class MujocoPhysics:
         with np.errstate(invalid="ignore", over="ignore"):
             w1 = (v1 - v0) / m.opt.timestep
         w1 = np.where(np.isfinite(w1), w1, 0.0)
-        touch = sensors[:, -1, :] > 0
+        nb = m.nbody - 1
+        touch = sensors[:, -1, :nb] > 0
         f32 = lambda x, d: np.asarray(x, np.float32).reshape(lead + (d,))
-        return f32(q1, m.nq), f32(v1, m.nv), f32(w1, m.nv), touch.reshape(lead + (m.nbody - 1,))
+        forces = np.zeros((n, len(self.channels)), np.float64)
+        i = nb
+        for c, ch in enumerate(self.channels):
+            k = len(ch.pairs)
+            normal = sensors[:, :, i:i + 3 * k:3]  # [n, substeps, pairs]
+            forces[:, c] = normal.sum(-1).max(-1)
+            i += 3 * k
+        return (f32(q1, m.nq), f32(v1, m.nv), f32(w1, m.nv), touch.reshape(lead + (nb,)),
+                f32(forces, len(self.channels)))
 
     def step(self, data: mjx.Data, target: jax.Array) -> tuple[mjx.Data, jax.Array]:
         """Holds ``target`` for ``substeps`` MuJoCo C steps; returns (data, body ground contacts).
 
         The contacts are read by sensors in the last step's forward pass (one substep old, as
         MJX's)."""
+        return self.step_forces(data, target)[:2]
+
+    def step_forces(self, data: mjx.Data, target: jax.Array) -> tuple[mjx.Data, jax.Array, jax.Array]:
+        """As ``step``, plus [n_channels] the maximum over the substeps of each force channel."""
         m = self.mj
         lead = data.qpos.shape[:-1]
         shapes = (jax.ShapeDtypeStruct(lead + (m.nq,), jnp.float32),
                   jax.ShapeDtypeStruct(lead + (m.nv,), jnp.float32),
                   jax.ShapeDtypeStruct(lead + (m.nv,), jnp.float32),
-                  jax.ShapeDtypeStruct(lead + (m.nbody - 1,), jnp.bool_))
-        qpos, qvel, warm, touch = jax.pure_callback(
+                  jax.ShapeDtypeStruct(lead + (m.nbody - 1,), jnp.bool_),
+                  jax.ShapeDtypeStruct(lead + (len(self.channels),), jnp.float32))
+        qpos, qvel, warm, touch, forces = jax.pure_callback(
             self.host_step, shapes, data.qpos, data.qvel, data.qacc_warmstart,
             target.astype(jnp.float32), vmap_method="broadcast_all")
         data = data.replace(qpos=qpos, qvel=qvel, qacc_warmstart=warm, ctrl=target,
                             time=data.time + self.substeps * m.opt.timestep)
-        return data, touch
+        return data, touch, forces
 
 
 def make_physics(backend: str, mj: mujoco.MjModel, mj_xml: str, model: mjx.Model, substeps: int,
-                 nthread: int | None = None):
-    """The backend object for a resolved or ``auto`` backend name."""
+                 nthread: int | None = None, channels=()):
+    """The backend object for a resolved or ``auto`` backend name; ``channels``: the force
+    channels ``step_forces`` reports (``physics/arena.py``)."""
     name = resolve_backend(backend)
     if name == "mjx":
-        return MJXPhysics(mj, model, substeps)
-    return MujocoPhysics(mj_xml, mj, model, substeps, nthread)
+        return MJXPhysics(mj, model, substeps, channels)
+    return MujocoPhysics(mj_xml, mj, model, substeps, nthread, channels)

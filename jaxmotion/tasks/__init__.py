@@ -3,8 +3,9 @@
 Register a new one with ``TASKS["name"] = MyTask`` (a ``Task`` subclass taking ``(cfg, env)``).
 """
 
-from jaxmotion.tasks.base import (AimConfig, HeadingConfig, LocationConfig, Task, TaskConfig,  # noqa: F401
-                                  TaskStep, TrackConfig, combine_weights)
+from jaxmotion.tasks.base import (AimConfig, BoxingConfig, FencingConfig, HeadingConfig,  # noqa: F401
+                                  LocationConfig, Task, TaskConfig, TaskStep, TrackConfig, combine_weights)
+from jaxmotion.tasks.bout import Boxing, Fencing
 from jaxmotion.tasks.location import AimLocation, Heading, Location
 from jaxmotion.tasks.track import Track
 
@@ -14,6 +15,8 @@ TASKS: dict[str, type[Task]] = {
     "heading": Heading,
     "aim+location": AimLocation,
     "track": Track,
+    "boxing": Boxing,
+    "fencing": Fencing,
 }
 
 
