@@ -22,7 +22,8 @@ The reference sequence of a group is its first clip, repeated to cover the episo
 The task's metrics (``Task.summary``: e.g. the location success rate) come under ``"task"``. With
 ``--switch RUN2 [...] --switch-every S`` the policies of several runs that share observation and
 action spaces take turns every S seconds on the same environments (paper Fig. 9), and
-``"switching"`` counts the falls within 1 s of a switch.
+``"switching"`` counts the falls within 1 s of a switch. Tracker runs are evaluated clip by clip
+(``track_eval.py``), two-player runs bout by bout (``bout_eval.py``: ``--against RUN``, ``--bouts N``).
 """
 
 from __future__ import annotations
@@ -271,6 +272,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="evaluate the run's configuration with freshly initialised networks (its seed): the baseline")
     p.add_argument("--switch", type=Path, nargs="+", default=(), metavar="RUN",
                    help="other run folders whose policies take turns with this one's (same observation and action sizes)")
+    p.add_argument("--against", type=Path, nargs="+", default=(), metavar="RUN",
+                   help="two-player runs: opponent run folders (default: the run plays itself)")
+    p.add_argument("--bouts", type=int, default=32, help="two-player runs: bouts per opponent (even; default 32)")
     p.add_argument("--switch-every", type=float, default=3.0, metavar="SECONDS",
                    help="seconds between policy switches with --switch (default 3)")
     # --- visualisation flags (jaxmotion.render / replay_html / plot) ---
@@ -292,6 +296,9 @@ def main(argv: list[str] | None = None) -> int:
         experiment += " (untrained)"
     if cfg.env.task.name == "track":
         return _main_track(args, experiment, cfg, learner, ts)
+    if cfg.env.players == 2:
+        from jaxmotion import bout_eval
+        return bout_eval.main(args, experiment, cfg, learner, ts)
     policies, switch_steps = ts, 0
     if args.switch:
         others = [load_run(r) for r in args.switch]

@@ -131,12 +131,15 @@ def require_gl() -> str:
 
 
 # ---- the scene ---------------------------------------------------------------------------------
-def scene_mjcf(sword_shield: bool = False, ghost: bool = True) -> str:
+def scene_mjcf(sword_shield: bool = False, ghost: bool = True, scenery: Sequence[Mapping[str, str]] = ()) -> str:
     """MJCF of the character over the floor, plus (``ghost``) a translucent, collision-free copy
-    whose bodies, joints and geoms are named ``ghost_<name>``; its qpos follows the character's."""
+    whose bodies, joints and geoms are named ``ghost_<name>``; its qpos follows the character's.
+    ``scenery``: extra static geoms (MJCF attribute dicts, e.g. ``physics.arena.scenery``)."""
     from jaxmotion.physics.character import build_mjcf
     root = ET.fromstring(build_mjcf(sword_shield))
     wb = root.find("worldbody")
+    for g in scenery:
+        ET.SubElement(wb, "geom", contype="0", conaffinity="0", **dict(g))
     vis = root.find("visual")
     if vis is not None:  # a brighter headlight and cheaper shadows; keep the offscreen buffer
         ET.SubElement(vis, "quality", shadowsize="2048")
@@ -192,11 +195,11 @@ class SceneRenderer:
 
     def __init__(self, sword_shield: bool = False, width: int = 640, height: int = 480,
                  group_colors: Mapping[int, Sequence[float]] | None = None,
-                 ghost_rgba: Sequence[float] = GHOST_RGBA):
+                 ghost_rgba: Sequence[float] = GHOST_RGBA, scenery: Sequence[Mapping[str, str]] = ()):
         import mujoco
         require_gl()
         self.mujoco = mujoco
-        self.model = mujoco.MjModel.from_xml_string(scene_mjcf(sword_shield, ghost=True))
+        self.model = mujoco.MjModel.from_xml_string(scene_mjcf(sword_shield, ghost=True, scenery=scenery))
         m = self.model
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), height)
@@ -283,9 +286,12 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
                 width: int = 640, height: int = 480, *, camera_distance: float = 3.5,
                 camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
                 ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True,
-                markers: Mapping[str, np.ndarray] | None = None) -> Iterator[np.ndarray]:
+                markers: Mapping[str, np.ndarray] | None = None,
+                scenery: Sequence[Mapping[str, str]] = ()) -> Iterator[np.ndarray]:
     """``render_frames`` one frame at a time (uint8 [H, W, 3] each), for long videos.
-    ``markers``: name -> [T, 2, 3] task-goal segments to draw (``Task.markers``)."""
+    ``markers``: name -> [T, 2, 3] task-goal segments to draw (``Task.markers``); ``scenery``:
+    static geoms to add (ropes, piste lines); with it the camera follows the midpoint of the
+    character and the ghost (a second player)."""
     qpos_seq = np.asarray(qpos_seq, np.float64)
     if qpos_seq.ndim != 2:
         raise ValueError(f"qpos_seq must be [T, nq], got shape {qpos_seq.shape}")
@@ -294,9 +300,10 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
         if ref_qpos_seq.shape != qpos_seq.shape:
             raise ValueError(f"ref_qpos_seq {ref_qpos_seq.shape} must match qpos_seq {qpos_seq.shape}")
     ss = _sword_shield_from_nq(qpos_seq.shape[1])
-    lookat = follow_lookat(qpos_seq[:, :3])
+    track = qpos_seq[:, :3] if not scenery or ref_qpos_seq is None else 0.5 * (qpos_seq[:, :3] + ref_qpos_seq[:, :3])
+    lookat = follow_lookat(track)
     from tqdm.auto import tqdm
-    with SceneRenderer(ss, width, height, group_colors, ghost_rgba) as sr:
+    with SceneRenderer(ss, width, height, group_colors, ghost_rgba, scenery) as sr:
         sr.camera.distance, sr.camera.azimuth, sr.camera.elevation = (
             camera_distance, camera_azimuth, camera_elevation)
         for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress,

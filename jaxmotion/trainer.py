@@ -272,7 +272,8 @@ class Learner:
             popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32),
             meta=self.meta.state if self.meta else None,
             clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
-            clip_weights=self.env.init_lib.clip_weight if self.hard_negatives else None)
+            # A copy: the chunk donates the state, which must not delete the library's own array.
+            clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None)
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:

@@ -263,3 +263,21 @@ def test_resets_follow_the_hard_negative_weights():
         freq = float(np.mean(np.asarray(clips(jax.random.PRNGKey(0), jnp.asarray([0.2, 0.8])))))
         even = float(np.mean(np.asarray(clips(jax.random.PRNGKey(0), lib.clip_weight))))
     assert abs(freq - 0.8) < 0.03 and abs(even - 0.5) < 0.03
+
+
+def test_a_donated_train_state_leaves_the_clip_library_intact():
+    """The hard-negative sampler's weights start as a copy: the compiled chunk donates the state,
+    and an aliased array would delete the library's own weights (measured: the first hard-negative
+    update of a real run then failed with 'Array has been deleted')."""
+    from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    lib = MotionLib.from_clips([_moving_clip()])
+    env_cfg = EnvConfig(groups=(GroupConfig(name="full", frames=2),), policy_frames=1, early_termination=False,
+                        task=TaskConfig(name="track"))
+    cfg = TrainConfig(env=env_cfg, net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
+                      ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4), disc=DiscConfig(minibatch_size=4),
+                      hard_negatives_every=1)
+    learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
+    ts = learner.init(jax.random.PRNGKey(0))
+    with jit_enabled():
+        jax.jit(lambda s: s, donate_argnums=0)(ts)
+    np.testing.assert_allclose(np.asarray(learner.env.init_lib.clip_weight), [1.0])

@@ -34,7 +34,7 @@ from jaxmotion.envs.humanoid import StepOut, lowest_point
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import load_motionlib, qpos_qvel, sample, sample_times
 from jaxmotion.physics import arena as A
-from jaxmotion.physics import backends
+from jaxmotion.physics import backends, sim
 from jaxmotion.physics.character import character
 from jaxmotion.physics.fk import LinkFK
 from jaxmotion.tasks import make_task
@@ -77,7 +77,7 @@ class BoutEnv:
         m.opt.iterations = pc.solver_iterations
         m.opt.ls_iterations = pc.ls_iterations
         self.mj = m
-        self.model = mjx.put_model(m)
+        self.model = mjx.put_model(m, impl=sim._impl(pc))
         self.channels = A.channels(ac, m)
         self.physics = physics if physics is not None else backends.make_physics(
             pc.backend, m, A.arena_mjcf(ac), self.model, pc.substeps, pc.threads or None, self.channels)

@@ -228,3 +228,26 @@ def layout(cfg: ArenaConfig) -> Layout:
         names = [m.body(i).name for i in range(*lay.bodies(k).indices(m.nbody))]
         assert names == [prefix + n for n in ch.body_names], "unexpected body order"
     return lay
+
+
+def scenery(cfg: ArenaConfig, piste: tuple[float, float] | None = None) -> tuple[dict, ...]:
+    """Visual-only geoms of the scene for the renderer: the ropes, or the piste's edges (thin
+    strips on the floor) when ``piste`` (length, width) is given. Dicts of MJCF geom attributes."""
+    out = []
+    if cfg.sport == "boxing" and cfg.ring_size > 0:
+        m = arena_model(cfg)
+        for i in range(4):
+            g = m.geom(f"rope{i}")
+            out.append({"name": f"scenery_rope{i}", "type": "box", "pos": _fmt3(g.pos), "size": _fmt3(g.size),
+                        "rgba": ROPE_RGBA})
+    if piste is not None:
+        L, W = piste
+        for i, (x, y, sx, sy) in enumerate([(0, W / 2, L / 2, 0.02), (0, -W / 2, L / 2, 0.02),
+                                            (L / 2, 0, 0.02, W / 2), (-L / 2, 0, 0.02, W / 2)]):
+            out.append({"name": f"scenery_piste{i}", "type": "box", "pos": f"{x:g} {y:g} 0.002",
+                        "size": f"{sx:g} {sy:g} 0.002", "rgba": "0.95 0.95 0.95 1"})
+    return tuple(out)
+
+
+def _fmt3(v) -> str:
+    return " ".join(f"{float(x):g}" for x in v)

@@ -159,8 +159,8 @@ class Boxing(BoutTask):
         half = self.env.cfg.arena.ring_size / 2 - c.rope_margin
         near = jnp.any(jnp.abs(root) > half, -1) & (self.env.cfg.arena.ring_size > 0)
         rope_steps = jnp.where(near, goal.rope_steps + 1, 0)
-        stuck = stuck_steps * dt > c.stuck_seconds
-        roped = rope_steps * dt > c.rope_seconds
+        stuck = stuck_steps > int(round(c.stuck_seconds / dt))  # whole steps: "> 5 s" is the 151st at 30 Hz
+        roped = rope_steps > int(round(c.rope_seconds / dt))
         penalised = fell | stuck | roped
         rewards = jnp.stack([match, close, facing, energy, -penalised.astype(jnp.float32)], -1)
         info = {"damage_dealt": dealt, "damage_received": dealt[::-1], "hit": dealt > 0, "close": close,
@@ -196,15 +196,19 @@ class Fencing(BoutTask):
         return jnp.concatenate([self.interaction_obs(frame, k), trig, goal.since[None]])
 
     def rules(self, goal: FencingState, touch: jax.Array, steps: jax.Array):
-        """The touch rules on one step: (next state, ended, win [2] float: +1 winner, -1 loser, 0 draw)."""
+        """The touch rules on one step: (next state, ended, win [2] float: +1 winner, -1 loser, 0 draw).
+
+        A counter-touch up to ``counter_seconds`` after the first touch (inclusive) is a draw, as
+        are simultaneous touches; once that window has passed, the first toucher has won (the
+        result falls on the first step after the window, whatever is touched then)."""
         window = int(round(self.sub.counter_seconds / self.env.dt))
-        touched = goal.touched | touch
+        over = (goal.first >= 0) & (steps - goal.first > window)
+        touched = goal.touched | (touch & ~over)
         first = jnp.where((goal.first < 0) & jnp.any(touch), steps, goal.first)
         both = touched[0] & touched[1]
-        over = (first >= 0) & (steps - first >= window)
         ended = both | over
-        single = touched & ~touched[::-1]
-        win = jnp.where(ended & ~both, single.astype(jnp.float32) - single[::-1].astype(jnp.float32), 0.0)
+        single = (touched & ~touched[::-1]).astype(jnp.float32)
+        win = jnp.where(ended & ~both, single - single[::-1], 0.0)
         since = jnp.where(first >= 0, (steps - first) * self.env.dt, 0.0).astype(jnp.float32)
         return FencingState(touched=touched, first=first, since=since), ended, win
 
