@@ -14,6 +14,8 @@ bench`` runs all three parts at batches 64, 256 and 1024 (and 4096, 16384 on a G
   into ``mujoco.rollout`` from a jitted scan).
 * **rollout**: ``Learner.rollout`` (``horizon`` control steps of policy + env), jitted, donated;
   one row per physics backend (``--backends``, default ``mjx,mujoco``; each row's ``backend``).
+  Two-player experiments (``--exp boxing/selfplay --parts rollout,train``) count player-steps:
+  each bout step is two samples.
 * **train**: ``make_train_chunk`` (``--iters`` whole iterations in one jitted scan, default 1:
   the scan adds nothing per iteration, and one iteration at batch 1024 already takes seconds).
 
@@ -280,7 +282,7 @@ def _learner(cfg: BenchConfig, batch: int, backend: str = "auto"):
     from jaxmotion.trainer import Learner
 
     tc = C.apply_overrides(C.load_experiment(cfg.exp), cfg.overrides + (f"env.physics.backend={backend}",))
-    n = batch * tc.ppo.horizon
+    n = batch * tc.ppo.horizon * tc.env.players
     fit = lambda mb: math.gcd(n, mb)  # the largest size <= mb that divides the sample count
     tc = dataclasses.replace(
         tc, ppo=dataclasses.replace(tc.ppo, num_envs=batch, minibatch_size=fit(tc.ppo.minibatch_size)),
@@ -308,7 +310,7 @@ def prepare_rollout(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, 
     compiled, compile_s = _compile(learner.rollout, ts, donate_argnums=0)
     fn = lambda s: compiled(s[0])
     state = jax.block_until_ready(fn((ts,)))  # warm-up
-    return Timed(fn, state, batch * tc.ppo.horizon), {"compile_s": compile_s}
+    return Timed(fn, state, batch * tc.ppo.horizon * tc.env.players), {"compile_s": compile_s}
 
 
 def prepare_train(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, dict[str, float]]:
@@ -323,7 +325,7 @@ def prepare_train(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, di
     compile_s = time.perf_counter() - t0
     fn = lambda s: compiled(s[0])
     state = jax.block_until_ready(fn((ts,)))  # warm-up
-    return Timed(fn, state, batch * tc.ppo.horizon * tc.chunk), {"compile_s": compile_s}
+    return Timed(fn, state, batch * tc.ppo.horizon * tc.chunk * tc.env.players), {"compile_s": compile_s}
 
 
 PARTS = ("physics", "rollout", "train")

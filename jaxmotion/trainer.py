@@ -251,7 +251,7 @@ class Learner:
     def _check_batch(self):
         pc = self.cfg.ppo
         n = pc.num_envs * pc.horizon * self.players
-        if n % pc.minibatch_size or n % self.cfg.disc.minibatch_size:
+        if n % pc.minibatch_size or (self.discs and n % self.cfg.disc.minibatch_size):
             raise ValueError(f"num_envs*horizon*players ({n}) must be a multiple of the minibatch sizes "
                              f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})")
 

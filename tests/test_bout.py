@@ -173,9 +173,9 @@ def _env(sport: str, backend: str = "mujoco", **kw) -> BoutEnv:
     ss = sport == "fencing"
     clip = make_test_clip(num_frames=40, root_vel=(0.0, 0.0, 0.0), sword_shield=ss)
     lib = MotionLib.from_clips([clip])
+    kw.setdefault("task", TaskConfig(name=sport))
     cfg = EnvConfig(physics=PhysicsConfig(sim_hz=120.0, sword_shield=ss, backend=backend), init_motions=("x",),
-                    groups=(), players=2, arena=A.ArenaConfig(sport=sport), task=TaskConfig(name=sport),
-                    policy_frames=1, **kw)
+                    groups=(), players=2, arena=A.ArenaConfig(sport=sport), policy_frames=1, **kw)
     return BoutEnv(cfg, init_lib=lib)
 
 
@@ -299,3 +299,48 @@ def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
                 assert np.all(np.isfinite(np.asarray(x)))
             np.testing.assert_allclose(out_sw.task_reward[:, ::-1], out.task_reward, rtol=1e-3, atol=1e-2)
             np.testing.assert_array_equal(out_sw.terminated[:, ::-1], out.terminated)
+
+
+def _learner(sport: str = "boxing"):
+    from jaxmotion.trainer import Learner, NetConfig, PPOConfig, TrainConfig
+    env = _env(sport, task=TaskConfig(name=sport, boxing=dataclasses.replace(
+        TaskConfig().boxing, start_distance=(0.7, 0.9))), episode_steps=30)
+    cfg = TrainConfig(env=env.cfg, net=NetConfig(policy_hidden=(16,), critic_hidden=(16,)),
+                      ppo=PPOConfig(num_envs=2, horizon=4, minibatch_size=8, multi_objective=False,
+                                    terminate_reward=None, absorbing_termination=False))
+    return Learner(cfg, env=env)
+
+
+def test_self_play_iteration_and_an_antisymmetric_evaluation():
+    from jaxmotion.bout_eval import play
+    learner = _learner()
+    assert learner.players == 2 and learner.cfg.samples_per_iteration == 2 * 4 * 2
+    with jit_enabled():
+        ts, ts2 = learner.init(jax.random.PRNGKey(0)), learner.init(jax.random.PRNGKey(1))
+        _, traj = jax.eval_shape(learner.rollout, ts)
+        assert traj.obs.shape == (4, 4, learner.env.obs_size) and traj.task_reward.shape == (4, 4, 5)
+        new, m = jax.jit(learner.iteration)(ts)
+        assert all(np.all(np.isfinite(np.asarray(v))) for v in jax.tree.leaves(m))
+        assert int(new.iteration) == 1
+        ab, ro = play(learner, ts, (learner, ts2), bouts=8, steps=30)
+        ba, _ = play(learner, ts2, (learner, ts), bouts=8, steps=30)
+    # Pairs of bouts share a start state with the sides swapped: A vs B is exactly -(B vs A).
+    assert ab["damage_diff_mean"] == pytest.approx(-ba["damage_diff_mean"], abs=1e-3)
+    assert (ab["wins"], ab["draws"], ab["losses"]) == (ba["losses"], ba["draws"], ba["wins"])
+    assert ab["falls"] == {"self": ba["falls"]["opponent"], "opponent": ba["falls"]["self"]}
+    assert ab["falls"]["self"] + ab["falls"]["opponent"] > 0  # something happened in these bouts
+    assert ro["qpos"].shape[:2] == (30, 8) and np.all(np.isfinite(ro["qpos"]))
+
+
+def test_two_player_config_errors_are_clear():
+    lib = MotionLib.from_clips([make_test_clip(num_frames=10)])
+    base = dict(init_motions=("x",), groups=(), players=2, task=TaskConfig(name="fencing"))
+    with pytest.raises(ValueError, match="sword_shield"):
+        BoutEnv(EnvConfig(arena=A.ArenaConfig(sport="fencing"), **base), init_lib=lib)
+    with pytest.raises(ValueError, match="arena.sport"):
+        BoutEnv(EnvConfig(arena=A.ArenaConfig(sport="boxing"), **base), init_lib=lib)
+    with pytest.raises(ValueError, match="not one of"):
+        A.ArenaConfig(sport="tennis")
+    with pytest.raises(ValueError, match="two-player task"):
+        BoutEnv(EnvConfig(arena=A.ArenaConfig(sport="boxing"), **dict(base, task=TaskConfig(name="location"))),
+                init_lib=lib)

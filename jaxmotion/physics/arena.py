@@ -15,6 +15,15 @@ actuator prefixed ``p0_`` / ``p1_`` (player 0's qpos first). Choices (notes won2
 * **Force channels**: the normal force of every scoring contact, summed per attacker, is read on
   every physics substep and its maximum over the control step reported (``Channel``; MuJoCo C by
   contact sensors, MJX from the constraint forces), so a punch that lasts one substep counts.
+  Both agree with ``mj_contactForce`` (``tests/test_bout.py``).
+
+Calibration (``tests/test_bout.py::test_scripted_punch_and_thrust_always_register_a_touch``,
+2026-12-02): player 0 lunges with the arm straight ahead (the blade along it for fencing), its
+glove at 8 m/s or blade tip at 10 m/s, from 10 cm at player 1's chest, centrally or 4 cm off.
+At 120, 240 and 480 Hz every lunge registers in its first control step, with peak normal forces
+of 5.8-7.9 kN (glove) and 4.7-8.5 kN (blade), far above the 1-N touch threshold, and the 200-N
+damage clip always saturates. These are whole-body lunges (49 kg moving): an arm-only punch
+would peak lower; it is not calibrated yet.
 """
 
 from __future__ import annotations
