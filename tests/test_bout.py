@@ -311,8 +311,8 @@ def _learner(sport: str = "boxing"):
     return Learner(cfg, env=env)
 
 
-def test_self_play_iteration_and_an_antisymmetric_evaluation():
-    from jaxmotion.bout_eval import play
+def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
+    from jaxmotion.bout_eval import play, write_bout_html
     learner = _learner()
     assert learner.players == 2 and learner.cfg.samples_per_iteration == 2 * 4 * 2
     with jit_enabled():
@@ -330,6 +330,8 @@ def test_self_play_iteration_and_an_antisymmetric_evaluation():
     assert ab["falls"] == {"self": ba["falls"]["opponent"], "opponent": ba["falls"]["self"]}
     assert ab["falls"]["self"] + ab["falls"]["opponent"] > 0  # something happened in these bouts
     assert ro["qpos"].shape[:2] == (30, 8) and np.all(np.isfinite(ro["qpos"]))
+    page = write_bout_html(learner, ro, tmp_path / "bout.html").read_text()
+    assert "player 0" in page and "player 1" in page
 
 
 def test_two_player_config_errors_are_clear():
