@@ -84,11 +84,12 @@ class PPOConfig:
     """True: clip each ω_k Ā_k term separately (the authors' code) instead of Eq. 9."""
     terminate_reward: float | None = -2.0
     """Reward of every objective on a terminating step, and (absorbing) on every step after it.
-    It must lie below the lowest reward an objective can pay (-1 for a discriminator), or a
-    policy whose rewards sit at that floor loses nothing by falling: with -1, a saturated
-    discriminator made the fall's value -1/(1-gamma) = -20 equal to staying up (measured). The
-    authors' code uses -1 with a value of 0 after the fall. None: the step keeps its rewards (a
-    task that pays its own penalties, as the two-player sports do)."""
+    It must lie below the lowest reward an objective can pay (a discriminator's: -1 with the
+    hinge loss, 0 with lsgan or bce), or a policy whose rewards sit at that floor loses nothing
+    by falling: with -1, a saturated hinge discriminator made the fall's value -1/(1-gamma) = -20
+    equal to staying up (measured). The authors' code uses -1 with a value of 0 after the fall.
+    None: the step keeps its rewards (a task that pays its own penalties, as the two-player
+    sports do)."""
     absorbing_termination: bool = True
     """True: a fall is an absorbing state that keeps paying ``terminate_reward`` (its value is
     ``terminate_reward / (1 - gamma)``), so with ``terminate_reward`` below every reward a fall
@@ -100,7 +101,19 @@ class PPOConfig:
 
 @dataclasses.dataclass(frozen=True)
 class DiscConfig:
-    """Discriminator ensembles: hinge loss with gradient penalty."""
+    """Discriminator ensembles: a prediction loss (``loss``) with gradient penalty.
+
+    ``loss`` picks the discriminator's loss and the reward that goes with it (``algos.disc``),
+    applied per head and averaged over heads; the gradient penalty (``gp_mode``, ``gp_weight``)
+    is the same for all three:
+
+    * 'hinge' (default): the paper's hinge loss (Xu et al. 2023, Eq. 2), reward the
+      clipped logit, in [-1, 1] (Eq. 5).
+    * 'lsgan': AMP's least-squares GAN (Peng et al. 2021, the paper), targets +1 / -1,
+      reward max(0, 1 - (D - 1)^2 / 4), in [0, 1].
+    * 'bce': binary cross-entropy on logits, as in AMP's isaacgym code that PHC (ZhengyiLuo/PHC)
+      inherits; reward -log max(1 - sigmoid(D), 1e-4), in [0, log 1e4 = 9.21].
+    """
 
     lr: float = 1e-5
     gp_weight: float = 10.0
@@ -112,6 +125,12 @@ class DiscConfig:
     gradients come from ``networks.head_input_grad_sq_norms`` (the chain rule as matrix
     products)."""
     minibatch_size: int = 256
+    loss: str = "hinge"
+    """'hinge' (default), 'lsgan' or 'bce' (class docstring); it also sets the reward floor that
+    ``ppo.terminate_reward`` must lie below (-1, 0, 0)."""
+
+    def __post_init__(self):
+        D.check_loss(self.loss)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -231,11 +250,14 @@ class Learner:
         self.hard_negatives = cfg.hard_negatives_every > 0
         if self.hard_negatives and cfg.env.task.name != "track":
             raise ValueError("hard_negatives_every needs the track task (env.task.name=track)")
+        # The configured loss's floor; the class attribute below is the default (hinge) one.
+        self.MIN_REWARD = D.MIN_REWARD[cfg.disc.loss]
         self._check_batch()
         self._check_fall_value()
 
-    # The lowest reward a discriminator objective can pay per step (``disc.disc_reward``).
-    MIN_REWARD = -1.0
+    # The lowest reward a discriminator objective can pay per step (``disc.disc_reward``) with
+    # the default hinge loss; an instance has its ``cfg.disc.loss``'s (``disc.MIN_REWARD``).
+    MIN_REWARD = D.MIN_REWARD["hinge"]
 
     def _check_fall_value(self):
         pc = self.cfg.ppo
@@ -361,7 +383,8 @@ class Learner:
             p, o = carry
             x_pol, x_ref, k = xs
             (_, m), grads = jax.value_and_grad(D.disc_loss, argnums=1, has_aux=True)(
-                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode, net.head_grad_sq_norms)
+                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode, net.head_grad_sq_norms,
+                dc.loss)
             updates, o = self.disc_optimizer.update(grads, o, p)
             return (optax.apply_updates(p, updates), o), m
 
@@ -375,7 +398,8 @@ class Learner:
         out = []
         for g, net in enumerate(self.discs):
             x = N.normalize(ts.disc_norm[g], traj.disc_obs[g].reshape(T * B, -1), None)
-            out.append(D.disc_reward(net.apply(ts.disc_params[g], x)).reshape(T, B))
+            logits = net.apply(ts.disc_params[g], x)
+            out.append(D.disc_reward(logits, self.cfg.disc.loss).reshape(T, B))
         return jnp.stack(out, -1) if out else jnp.zeros((T, B, 0), jnp.float32)
 
     def disc_step(self, ts: TrainState, traj: Transition):

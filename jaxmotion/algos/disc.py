@@ -15,6 +15,24 @@ Both terms are averaged (not summed) over heads, so the loss scale does not depe
 The reward of a group is the ensemble mean of the clipped logits (Eq. 5), ``mean_h clip(D_h,
 -1, 1)``.
 
+``loss`` switches the prediction term and the reward (``LOSSES``); each is applied per head and
+averaged over samples and heads like the hinge, and the gradient penalty above is the same for
+all three::
+
+    "hinge": L_hinge as above;            r = mean_h clip(D_h, -1, 1)              in [-1, 1]
+    "lsgan": mean_h [ mean_m (D_h(x_ref) - 1)^2 + mean_n (D_h(x_policy) + 1)^2 ]
+                                           r = mean_h max(0, 1 - (D_h - 1)^2 / 4)    in [0, 1]
+    "bce":   mean_h [ mean_m -log sigmoid(D_h(x_ref)) + mean_n -log sigmoid(-D_h(x_policy)) ]
+                                           r = mean_h -log max(1 - sigmoid(D_h), 1e-4)
+                                                                          in [0, log 1e4 ~ 9.21]
+
+"lsgan" is the least-squares GAN of the AMP paper (Peng et al. 2021). "bce" is the binary
+cross-entropy of AMP's released isaacgym code as PHC (ZhengyiLuo/PHC) inherits it, reward clip
+included; that code also halves the sum of the two terms and adds logit and weight-decay
+regularisers, not done here. Both AMP and PHC penalise ``|grad_x D|^2`` on reference samples
+(zero-centred); here every loss keeps the interpolate penalty above (``gp_mode``). The lsgan
+reward peaks at ``D = 1`` (the reference target) and falls again above it, as in AMP.
+
 The per-sample input gradients are taken with one backward pass per head through the batched
 forward pass, which assumes the discriminator treats samples independently (no batch
 statistics), true of ``nets.networks.DiscriminatorEnsemble``. For that network the per-head
@@ -29,9 +47,22 @@ from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 Params = Any
 GP_MODES = ("per_head", "sum_heads")
+LOSSES = ("hinge", "lsgan", "bce")
+BCE_REWARD_FLOOR = 1e-4
+"""The ``"bce"`` reward's clip: ``1 - sigmoid(D)`` is floored here (reward at most ``log 1e4``)."""
+MIN_REWARD = {"hinge": -1.0, "lsgan": 0.0, "bce": 0.0}
+"""The lowest reward ``disc_reward`` can pay per step, by loss."""
+
+
+def check_loss(loss: str) -> None:
+    """Raises ``ValueError`` naming the valid losses unless ``loss`` is one of ``LOSSES``."""
+    if loss not in LOSSES:
+        names = ", ".join(map(repr, LOSSES))
+        raise ValueError(f"discriminator loss must be one of {names}, got {loss!r}")
 
 
 def hinge_loss(policy_logits: jax.Array, ref_logits: jax.Array) -> jax.Array:
@@ -45,6 +76,37 @@ def hinge_loss(policy_logits: jax.Array, ref_logits: jax.Array) -> jax.Array:
       ``[]`` ``mean_h [mean_n relu(1 + D_policy) + mean_m relu(1 - D_ref)]``.
     """
     return jnp.mean(jax.nn.relu(1.0 + policy_logits)) + jnp.mean(jax.nn.relu(1.0 - ref_logits))
+
+
+def lsgan_loss(policy_logits: jax.Array, ref_logits: jax.Array) -> jax.Array:
+    """Least-squares GAN loss of AMP averaged over samples and heads.
+
+    Args:
+      policy_logits: ``[N, H]`` logits on policy observations (target -1).
+      ref_logits: ``[M, H]`` logits on reference observations (target +1).
+
+    Returns:
+      ``[]`` ``mean_h [mean_m (D_ref - 1)^2 + mean_n (D_policy + 1)^2]``.
+    """
+    return jnp.mean(jnp.square(ref_logits - 1.0)) + jnp.mean(jnp.square(policy_logits + 1.0))
+
+
+def bce_loss(policy_logits: jax.Array, ref_logits: jax.Array) -> jax.Array:
+    """Binary cross-entropy on logits (reference label 1, policy label 0), averaged over samples
+    and heads.
+
+    Args:
+      policy_logits: ``[N, H]`` logits on policy observations (label 0).
+      ref_logits: ``[M, H]`` logits on reference observations (label 1).
+
+    Returns:
+      ``[]`` ``mean_h [mean_m -log sigmoid(D_ref) + mean_n -log sigmoid(-D_policy)]``, with
+      ``log_sigmoid`` (finite at any logit).
+    """
+    return -jnp.mean(jax.nn.log_sigmoid(ref_logits)) - jnp.mean(jax.nn.log_sigmoid(-policy_logits))
+
+
+_PREDICTION_LOSSES = {"hinge": hinge_loss, "lsgan": lsgan_loss, "bce": bce_loss}
 
 
 def _safe_norm(x: jax.Array, axis: int = -1) -> jax.Array:
@@ -121,8 +183,10 @@ def disc_loss(
     gp_weight: float = 10.0,
     gp_mode: str = "per_head",
     sq_norms_fn: Callable[[Params, jax.Array], jax.Array] | None = None,
+    loss: str = "hinge",
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
-    """Hinge loss plus gradient penalty of one discriminator ensemble (module docstring).
+    """Prediction loss (hinge by default) plus gradient penalty of one discriminator ensemble
+    (module docstring).
 
     Args:
       apply_fn: ``(params, x [N, D]) -> logits [N, H]``; inputs already normalised.
@@ -134,32 +198,55 @@ def disc_loss(
       gp_weight: weight of the gradient penalty.
       gp_mode: ``"per_head"`` (paper Eq. 2) or ``"sum_heads"`` (authors' code).
       sq_norms_fn: see ``gradient_penalty``.
+      loss: the prediction loss, one of ``LOSSES`` (module docstring).
 
     Returns:
-      ``(loss [], metrics)``, metrics a dict of scalars: ``loss``, ``hinge_loss``,
-      ``gradient_penalty``, ``policy_logit``, ``ref_logit`` (means over samples and heads),
-      ``accuracy`` (fraction of logits on the correct side of 0).
+      ``(loss [], metrics)``, metrics a dict of scalars: ``loss``, ``<loss>_loss`` (e.g.
+      ``hinge_loss``, the prediction term), ``gradient_penalty``, ``policy_logit``,
+      ``ref_logit`` (means over samples and heads), ``accuracy`` (fraction of logits on the
+      correct side of 0, the decision boundary of all three losses).
     """
     if gp_mode not in GP_MODES:
         raise ValueError(f"gp_mode must be one of {GP_MODES}, got {gp_mode!r}")
+    check_loss(loss)
     policy_logits = apply_fn(params, policy_obs)
     ref_logits = apply_fn(params, ref_obs)
-    hinge = hinge_loss(policy_logits, ref_logits)
+    prediction = _PREDICTION_LOSSES[loss](policy_logits, ref_logits)
     x_hat = jax.lax.stop_gradient(interpolate(rng, policy_obs, ref_obs))
     gp = gradient_penalty(apply_fn, params, x_hat, gp_mode, sq_norms_fn)
-    loss = hinge + gp_weight * gp
+    total = prediction + gp_weight * gp
     correct = jnp.concatenate([(policy_logits < 0).ravel(), (ref_logits > 0).ravel()])
     metrics = {
-        "loss": loss,
-        "hinge_loss": hinge,
+        "loss": total,
+        f"{loss}_loss": prediction,
         "gradient_penalty": gp,
         "policy_logit": jnp.mean(policy_logits),
         "ref_logit": jnp.mean(ref_logits),
         "accuracy": jnp.mean(correct.astype(jnp.float32)),
     }
-    return loss, jax.tree.map(jax.lax.stop_gradient, metrics)
+    return total, jax.tree.map(jax.lax.stop_gradient, metrics)
 
 
-def disc_reward(logits: jax.Array) -> jax.Array:
-    """``[..., H]`` ensemble logits -> ``[...]`` reward ``mean_h clip(D_h, -1, 1)`` (Eq. 5)."""
-    return jnp.mean(jnp.clip(logits, -1.0, 1.0), axis=-1)
+def disc_reward(logits: jax.Array, loss: str = "hinge") -> jax.Array:
+    """``[..., H]`` ensemble logits -> ``[...]`` reward, the mean over heads of a per-head reward.
+
+    Args:
+      logits: ``[..., H]`` discriminator logits.
+      loss: the loss the discriminator is trained with, one of ``LOSSES``:
+        ``"hinge"``: ``mean_h clip(D_h, -1, 1)`` (Eq. 5), in ``[-1, 1]``;
+        ``"lsgan"``: ``mean_h max(0, 1 - (D_h - 1)^2 / 4)`` (AMP), in ``[0, 1]``;
+        ``"bce"``: ``mean_h -log max(1 - sigmoid(D_h), 1e-4)`` (AMP's and PHC's code), computed as
+        ``min(-log_sigmoid(-D_h), -log 1e-4)``: the clip at ``BCE_REWARD_FLOOR`` keeps it finite,
+        in ``[0, log 1e4 ~ 9.21]``.
+
+    Returns:
+      ``[...]`` rewards, never below ``MIN_REWARD[loss]``.
+    """
+    check_loss(loss)
+    if loss == "lsgan":
+        per_head = jnp.maximum(0.0, 1.0 - 0.25 * jnp.square(logits - 1.0))
+    elif loss == "bce":
+        per_head = jnp.minimum(-jax.nn.log_sigmoid(-logits), -np.log(BCE_REWARD_FLOOR))
+    else:
+        per_head = jnp.clip(logits, -1.0, 1.0)
+    return jnp.mean(per_head, axis=-1)
