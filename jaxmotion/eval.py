@@ -387,6 +387,8 @@ def _main_track(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: T
         frames = iter_frames(ro["qpos"][:n, 0].astype(np.float64), ro["ref_qpos"][:n, 0].astype(np.float64),
                              learner_group_colors(learner))
         print(f"video: {write_video(frames, args.video, 1.0 / learner.env.dt)} (clip 0, its reference as the ghost)")
+    if args.html and ro is not None:
+        print(f"html: {TE.write_track_html(learner, ro, args.html)} (clip 0, its reference as the ghost)")
     if not args.no_plots:
         _learning_curves(args.run)
     return 0

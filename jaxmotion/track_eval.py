@@ -244,3 +244,18 @@ def hard_negative_update(learner, ts, run_dir: Path | None = None):
         tmp.write_text(json.dumps(doc, indent=2))
         tmp.replace(Path(run_dir) / HARD_FILE)
     return ts, hard
+
+
+def write_track_html(learner, ro: dict, path, clip: int = 0):
+    """The replay page of one tracked clip (the frames the tracker played): the simulated
+    character solid, its reference clip as the ghost."""
+    from jaxmotion.render import learner_group_colors
+    from jaxmotion.replay_html import character_geoms, write_html
+    env = learner.env
+    ch = env.character
+    n = int(np.asarray(ro["played"])[:, clip].sum())
+    sp, sq = (np.asarray(x) for x in env.poses_of(jnp.asarray(ro["qpos"][:n, clip])))
+    rp, rq = (np.asarray(x) for x in env.poses_of(jnp.asarray(ro["ref_qpos"][:n, clip])))
+    return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / env.dt,
+                      character_geoms(ch.sword_shield, learner_group_colors(learner)),
+                      title="jaxmotion tracker (ghost: the reference clip)")

@@ -161,8 +161,9 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         bar.set_postfix(post, refresh=False)
         bar.update(cfg.chunk)
         done = int(ts.iteration) >= cfg.iterations
-        if cfg.hard_negatives_every and chunks % cfg.hard_negatives_every == 0 and not done:
-            # Before the checkpoint, so that a resumed run samples as the uninterrupted one.
+        if cfg.hard_negatives_every and (int(ts.iteration) // cfg.chunk) % cfg.hard_negatives_every == 0 and not done:
+            # Counted in iterations, not in this process's chunks, and before the checkpoint, so
+            # that a resumed run mines and samples as the uninterrupted one.
             from jaxmotion.track_eval import hard_negative_update
             ts, hard = hard_negative_update(learner, ts, run_dir)
             bar.write(f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of "

@@ -219,6 +219,8 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
             ts, _ = run(ts)
         played, err, res = score(learner, ts)
         noisy, _ = TE.evaluate_clips(learner, ts, clips=clips, noise=1.0)
+        _, ro = TE.evaluate_clips(learner, ts)  # the compiled evaluation is cached: cheap
+        page = TE.write_track_html(learner, ro, tmp_path / "track.html").read_text()
         # Hard negatives: the clips an untrained policy fails are counted and sampled more often.
         mined, hard = TE.hard_negative_update(learner, untrained[1], tmp_path)
     fails = np.asarray(mined.clip_fails)
@@ -227,6 +229,7 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
     np.testing.assert_allclose(w, (1 + fails) / (1 + fails).sum(), rtol=1e-6)
     doc = json.loads((tmp_path / TE.HARD_FILE).read_text())
     assert doc["failed"] == hard and sum(doc["cumulative_failures"].values()) == fails.sum()
+    assert "the reference clip" in page
     assert noisy["noise"] == 1.0 and noisy["clips_total"] == 2 and all(c["played"] > 0 for c in noisy["clips"])
     base_played = np.array([b[0] for b in base])
     base_err = np.array([b[1] for b in base])
