@@ -30,7 +30,7 @@ from flax import struct
 from mujoco import mjx
 
 from jaxmotion.envs import observations as O
-from jaxmotion.envs.humanoid import StepOut, lowest_point
+from jaxmotion.envs.humanoid import StepOut, joint_arrays, lowest_point
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import load_motionlib, qpos_qvel, sample, sample_times
 from jaxmotion.physics import arena as A
@@ -84,12 +84,7 @@ class BoutEnv:
         self.groups, self.group_idx, self.motion_libs = [], [], ()
         self.init_lib = init_lib if init_lib is not None else load_motionlib(cfg.init_motions, ch,
                                                                              drop_props=cfg.drop_props)
-        lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
-        self._mid = jnp.asarray((lo + hi) / 2, jnp.float32)
-        self._half = jnp.asarray((hi - lo) / 2, jnp.float32)
-        self._lo, self._hi = jnp.asarray(lo, jnp.float32), jnp.asarray(hi, jnp.float32)
-        allowed = {ch.body_index(b) for b in cfg.allowed_contacts}
-        self._bad_body = jnp.asarray([b not in allowed for b in range(ch.num_bodies)])
+        self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
         self._data0 = mjx.make_data(self.model)
         self._fk = LinkFK(m)
         # Per player: its body geoms (spheres, capsules, boxes; for the start's lift above the floor).

@@ -165,13 +165,7 @@ class HumanoidEnv:
                         else self.motion_libs[0])
         self.init_lib = init_lib
         self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
-        lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
-        self._mid = jnp.asarray((lo + hi) / 2, jnp.float32)
-        self._half = jnp.asarray((hi - lo) / 2, jnp.float32)
-        self._lo, self._hi = jnp.asarray(lo, jnp.float32), jnp.asarray(hi, jnp.float32)
-        # Bodies whose ground contact ends an episode (all but the allowed ones).
-        allowed = {ch.body_index(b) for b in cfg.allowed_contacts}
-        self._bad_body = jnp.asarray([b not in allowed for b in range(ch.num_bodies)])
+        self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
         self._data0 = mjx.make_data(self.model)
         m = sim.mj_model(cfg.physics)
         self._fk = LinkFK(m)
@@ -324,6 +318,16 @@ class HumanoidEnv:
         return out_state, StepOut(obs=obs, final_obs=final_obs, disc_obs=dobs, terminated=terminated,
                                   truncated=truncated, unstable=unstable, task_reward=task_reward,
                                   info=task.info)
+
+
+def joint_arrays(ch, allowed_contacts: Sequence[str]) -> tuple[jax.Array, ...]:
+    """(mid-range, half-range, lower, upper limits [n_dof]; bodies whose ground contact is a fall
+    [nb], i.e. all but ``allowed_contacts``) of a character, as float32 / bool arrays."""
+    lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
+    allowed = {ch.body_index(b) for b in allowed_contacts}
+    f = lambda x: jnp.asarray(x, jnp.float32)
+    return (f((lo + hi) / 2), f((hi - lo) / 2), f(lo), f(hi),
+            jnp.asarray([b not in allowed for b in range(ch.num_bodies)]))
 
 
 def lowest_point(d: mjx.Data, geoms: jax.Array, size: jax.Array, typ: jax.Array) -> jax.Array:
