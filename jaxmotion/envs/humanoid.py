@@ -274,6 +274,13 @@ class HumanoidEnv:
     def pd_target(self, action: jax.Array) -> jax.Array:
         return self._mid + self.cfg.action_scale * action * self._half
 
+    def power(self, data: mjx.Data, target: jax.Array) -> jax.Array:
+        """The servo's mechanical power sum_j |tau_j qdot_j| (W) at ``data``, holding ``target``
+        (the torque formula of ``sim.pd_torque``: the state after the step, not a substep mean)."""
+        q, qd = data.qpos[7:], data.qvel[6:]
+        tau = sim.pd_torque(self.character, q, qd, target)
+        return jnp.nan_to_num(jnp.sum(jnp.abs(tau * qd)), nan=0.0, posinf=0.0)
+
     def action_for_target(self, target: jax.Array) -> jax.Array:
         """The action whose PD target is ``target`` [.., n_dof] (inverse of ``pd_target``)."""
         return (target - self._mid) / (self.cfg.action_scale * self._half)
@@ -288,7 +295,8 @@ class HumanoidEnv:
         ``where`` below keeps it only where an episode ended).
         """
         cfg = self.cfg
-        data, ground = self.physics.step(state.data, self.pd_target(action))
+        target = self.pd_target(action)
+        data, ground = self.physics.step(state.data, target)
         # Contacts are those of the last substep's collision pass (one substep old); the link
         # frames are computed at the new state for the observations, in JAX for every backend.
         touching = ground & self._bad_body
@@ -303,7 +311,7 @@ class HumanoidEnv:
         clean = lambda x: jnp.where(unstable, 0.0, jnp.nan_to_num(x, posinf=0.0, neginf=0.0))
         hist = jax.tree.map(clean, hist)
         rng, k, k_task = jax.random.split(state.rng, 3)
-        task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task)
+        task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task, self.power(data, target))
         task_reward = jnp.where(unstable, 0.0, task.rewards)
         terminated = terminated | (task.terminated & (steps > cfg.contact_grace_steps))
         truncated = (truncated | task.truncated) & ~terminated

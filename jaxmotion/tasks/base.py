@@ -8,8 +8,9 @@ vmapped with the environment:
   frames; ``start``: the clip and time of the reference state it was reset to);
 * ``observe(goal, frame) -> [goal_size]``: the goal features, which the policy and critics get
   after the body-state features, raw (not normalised, as the authors' code);
-* ``step(goal, prev, frame, rng) -> TaskStep``: after a control step from link frames ``prev`` to
-  ``frame``: the next goal, one reward per ``reward_names`` entry, an extra termination and
+* ``step(goal, prev, frame, rng, power) -> TaskStep``: after a control step from link frames
+  ``prev`` to ``frame`` (``power``: the servo's mechanical power sum_j |tau_j qdot_j| at the new
+  state, W): the next goal, one reward per ``reward_names`` entry, an extra termination and
   per-step ``info`` scalars that ``summary`` turns into the task's evaluation metrics.
 
 The learner makes one objective (critic head, PopArt statistics, weight ω) per reward name, next
@@ -98,6 +99,10 @@ class TrackConfig:
     """Weights of those four terms (they sum to 1: a perfect frame pays 1)."""
     weight: float = 0.5
     """ω of the imitation objective (the paper's 0.5 task / 0.5 motion prior)."""
+    energy_coef: float = 0.0005
+    """The energy penalty -c * sum_j |tau_j qdot_j| (linear mechanical power, the authors' code;
+    the paper prints the square) added to the imitation reward, zero on an episode's first 3
+    steps; 0 disables it."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -198,7 +203,8 @@ class Task:
     def observe(self, goal: Any, frame: LinkFrames) -> jax.Array:
         return jnp.zeros((0,), jnp.float32)
 
-    def step(self, goal: Any, prev: LinkFrames, frame: LinkFrames, rng: jax.Array) -> TaskStep:
+    def step(self, goal: Any, prev: LinkFrames, frame: LinkFrames, rng: jax.Array,
+             power: jax.Array | None = None) -> TaskStep:
         return TaskStep(goal=goal, rewards=jnp.zeros((0,), jnp.float32),
                         terminated=jnp.zeros((), bool), info={})
 

@@ -95,7 +95,7 @@ class Location(Task):
         r = velocity_reward((p_next - p) / dt, s_star * _unit(d), s_star)
         return jnp.where(jnp.linalg.norm(goal.target - p_next) < c.radius, 1.0, r)
 
-    def step(self, goal: LocationGoal, prev: LinkFrames, frame: LinkFrames, rng) -> TaskStep:
+    def step(self, goal: LocationGoal, prev: LinkFrames, frame: LinkFrames, rng, power=None) -> TaskStep:
         c = self.cfg.location
         p, p_next = root_xy(prev), root_xy(frame)
         r = self.location_reward(goal, p, p_next)
@@ -159,7 +159,7 @@ class Heading(Task):
         u = to_heading(frame, jnp.concatenate([goal.direction, jnp.zeros((1,))]))[:2]
         return jnp.concatenate([u, goal.speed[None]])
 
-    def step(self, goal: HeadingGoal, prev, frame, rng) -> TaskStep:
+    def step(self, goal: HeadingGoal, prev, frame, rng, power=None) -> TaskStep:
         v = (root_xy(frame) - root_xy(prev)) / self.env.dt
         r = velocity_reward(v, goal.speed * goal.direction, goal.speed)
         speed = jnp.linalg.norm(v)
@@ -230,7 +230,7 @@ class AimLocation(Location):
         ang = jnp.rad2deg(jnp.arccos(jnp.clip(jnp.sum(fore * aim), -1.0, 1.0)))
         return r, ang
 
-    def step(self, goal: AimGoal, prev, frame, rng) -> TaskStep:
+    def step(self, goal: AimGoal, prev, frame, rng, power=None) -> TaskStep:
         k_l, k_a = jax.random.split(rng)
         inside = self._inside(goal, frame)
         r_aim, ang = self.aim_reward(goal.aim, frame, inside)
