@@ -97,12 +97,10 @@ def test_reward_and_termination_by_hand():
         three = jnp.asarray([0, 1, 2])  # three of 13 checked bodies 1 m off: mean 0.23 m
         out = jax.jit(lambda f: mean_env.task.step(g, f, f, None))(ref.replace(pos=ref.pos.at[three, 0].add(1.0)))
     assert not bool(out.terminated)
-    # The energy penalty: -0.0005 * power, from an episode's 4th step on.
+    # The energy penalty: -0.0005 * power.
     with jit_enabled():
-        powered = jax.jit(lambda g, p: task.step(g, ref, ref, None, p))
-        first, later = powered(goal, jnp.float32(400.0)), powered(goal.replace(steps=jnp.int32(3)), jnp.float32(400.0))
-    assert float(first.rewards[0]) == pytest.approx(1.0, abs=1e-4) and int(first.goal.steps) == 1
-    assert float(later.rewards[0]) == pytest.approx(1.0 - 0.0005 * 400.0, abs=1e-4)
+        powered = jax.jit(lambda p: task.step(goal, ref, ref, None, p))(jnp.float32(400.0))
+    assert float(powered.rewards[0]) == pytest.approx(1.0 - 0.0005 * 400.0, abs=1e-4)
 
 
 def test_the_clip_end_truncates(env):

@@ -311,7 +311,8 @@ class HumanoidEnv:
         clean = lambda x: jnp.where(unstable, 0.0, jnp.nan_to_num(x, posinf=0.0, neginf=0.0))
         hist = jax.tree.map(clean, hist)
         rng, k, k_task = jax.random.split(state.rng, 3)
-        task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task, self.power(data, target))
+        power = jnp.where(steps > 3, self.power(data, target), 0.0)  # the servo settles first (PHC's code)
+        task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task, power)
         task_reward = jnp.where(unstable, 0.0, task.rewards)
         terminated = terminated | (task.terminated & (steps > cfg.contact_grace_steps))
         truncated = (truncated | task.truncated) & ~terminated

@@ -10,7 +10,8 @@ vmapped with the environment:
   after the body-state features, raw (not normalised, as the authors' code);
 * ``step(goal, prev, frame, rng, power) -> TaskStep``: after a control step from link frames
   ``prev`` to ``frame`` (``power``: the servo's mechanical power sum_j |tau_j qdot_j| at the new
-  state, W): the next goal, one reward per ``reward_names`` entry, an extra termination and
+  state, W; 0 on an episode's first 3 steps, while the servo takes over from the reference
+  state, as the tracker's authors do): the next goal, one reward per ``reward_names`` entry, an extra termination and
   per-step ``info`` scalars that ``summary`` turns into the task's evaluation metrics.
 
 The learner makes one objective (critic head, PopArt statistics, weight ω) per reward name, next
@@ -101,8 +102,8 @@ class TrackConfig:
     """ω of the imitation objective (the paper's 0.5 task / 0.5 motion prior)."""
     energy_coef: float = 0.0005
     """The energy penalty -c * sum_j |tau_j qdot_j| (linear mechanical power, the authors' code;
-    the paper prints the square) added to the imitation reward, zero on an episode's first 3
-    steps; 0 disables it."""
+    the paper prints the square) added to the imitation reward (the scene reports no power on an
+    episode's first 3 steps); 0 disables it."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,7 +13,7 @@ goal is that clip's next frame. Notes ``phc.md`` §1-§3, the authors' code wher
   position error (c = 100, w = 0.5), rotation angle (10, 0.3), linear (0.1, 0.1) and angular
   velocity errors (0.1, 0.1) of all bodies: 1 for a perfect frame; minus the energy penalty
   ``energy_coef * sum_j |tau_j qdot_j|`` (the code's linear power, from the servo's torque at the
-  new state), which is zero on an episode's first 3 steps.
+  new state; the scene reports 0 on an episode's first 3 steps).
 * **Termination**: any body except the feet farther than 0.25 m from its reference (the code's
   ``max`` rule), or their mean beyond ``termination_distance`` (``mean``, the paper's 0.5 m). A
   clip that ends truncates the episode (bootstrapped), a loop clip wraps.
@@ -38,7 +38,6 @@ from jaxmotion.tasks.base import Task, TaskStep
 class TrackGoal:
     clip: jax.Array  # int32: the clip being tracked
     time: jax.Array  # reference time (s) of the character's current frame
-    steps: jax.Array = 0  # control steps since the episode started
 
 
 class Track(Task):
@@ -69,8 +68,7 @@ class Track(Task):
     def init(self, rng, frame, start=None):
         if start is None:
             raise ValueError("the track task needs the reset's clip and time (env.reset passes them)")
-        return TrackGoal(clip=jnp.asarray(start[0], jnp.int32), time=jnp.asarray(start[1], jnp.float32),
-                         steps=jnp.zeros((), jnp.int32))
+        return TrackGoal(clip=jnp.asarray(start[0], jnp.int32), time=jnp.asarray(start[1], jnp.float32))
 
     def observe(self, goal: TrackGoal, frame: O.LinkFrames) -> jax.Array:
         ref = self.reference(goal, self.env.dt)
@@ -112,10 +110,9 @@ class Track(Task):
         info = {"body_error_m": jnp.mean(e["body"]), "max_error_m": jnp.max(checked)}
         reward = self.imitation_reward(e)
         if c.energy_coef and power is not None:
-            energy = jnp.where(goal.steps >= 3, c.energy_coef * power, 0.0)
-            reward = reward - energy
-            info["energy"] = energy
-        return TaskStep(goal=goal.replace(time=t, steps=goal.steps + 1), rewards=reward[None],
+            info["energy"] = c.energy_coef * power
+            reward = reward - info["energy"]
+        return TaskStep(goal=goal.replace(time=t), rewards=reward[None],
                         terminated=far > c.termination_distance, info=info, truncated=ended)
 
     def summary(self, info, alive):
