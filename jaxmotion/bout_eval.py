@@ -185,6 +185,9 @@ def main(args, experiment: str, cfg, learner, ts) -> int:
             if ocfg.env.arena.sport != sport:
                 print(f"error: {r} is a {ocfg.env.arena.sport} run, {args.run} a {sport} run", file=sys.stderr)
                 return 2
+            if ocfg.env != cfg.env:
+                print(f"note: {r} was trained in another scene or with other rules; these bouts use "
+                      f"{args.run}'s, so A vs B and B vs A are antisymmetric only within one scene")
             opponents.append((str(r), (olearner, ots)))
     samples = int(ts.iteration) * cfg.samples_per_iteration
     print(f"{experiment}: {samples:,} samples, {sport}, {args.bouts} bouts per opponent (sides swapped in pairs)")

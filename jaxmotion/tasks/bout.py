@@ -121,7 +121,7 @@ class Boxing(BoutTask):
 
     sport = "boxing"
     reward_names = ("match", "close", "facing", "energy", "penalty")
-    min_reward = -200.0
+    min_reward = -float("inf")  # the energy term has no floor
 
     def start(self, rng: jax.Array) -> tuple[jax.Array, jax.Array]:
         """Roots 0.7-3 m apart (uniform), their midpoint within 1 m of the centre, facing each other."""
