@@ -34,6 +34,7 @@ def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: b
         k_reset, k_act = jax.random.split(key)
         keys = jax.random.split(k_reset, bouts // 2)
         state, obs = jax.vmap(env.reset)(jnp.repeat(keys, 2, axis=0))  # pairs share a start state
+        state0, obs0 = state, obs
         mine = (jnp.arange(2)[None, :] == side[:, None])  # [E, 2]: which player is the evaluated one
 
         def step(carry, k):
@@ -42,7 +43,9 @@ def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: b
             a = learner.act(ts, obs, None if deterministic else k1)[0]
             b = opponent_learner.act(ts_op, obs, None if deterministic else k2)[0]
             action = jnp.where(mine[..., None], a, b)
-            new, out = jax.vmap(env.step)(state, action)
+            # A bout that ends is not played on: restarting it from its start state (instead of a
+            # fresh reset on every step for every bout) costs nothing.
+            new, out = jax.vmap(env.step)(state, action, (state0, obs0))
             done = jnp.any(out.terminated | out.truncated, -1)
             rec = (state.data.qpos, alive, out.info, out.terminated, out.truncated)
             return (new, out.obs, alive & ~done), rec
@@ -222,9 +225,7 @@ def write_bout_html(learner, ro: dict, path: Path, bout: int = 0) -> Path:
     env = learner.env
     ch = env.character
     n = int(ro["alive"][:, bout].sum())
-    q = jnp.asarray(ro["qpos"][:n, bout])
-    f = env.frames_of(q, jnp.zeros(q.shape[:-1] + (env.mj.nv,)))
-    pos, quat = np.asarray(f.pos), np.asarray(f.quat)
+    pos, quat = (np.asarray(x) for x in env.poses_of(jnp.asarray(ro["qpos"][:n, bout])))
     col = {b: tuple(float(x) for x in PLAYER_RGBA[0].split()) for b in range(ch.num_bodies)}
     legend = {"player 0": PLAYER_RGBA[0].split(), "player 1": PLAYER_RGBA[1].split()}
     return write_html(path, ch.body_names, ch.parents, pos[:, 0], quat[:, 0], pos[:, 1], quat[:, 1],

@@ -129,6 +129,12 @@ class BoutEnv:
         nb = self.layout.nb
         return jax.tree.map(lambda x: x.reshape(x.shape[:-2] + (PLAYERS, nb, x.shape[-1])), f)
 
+    def poses_of(self, qpos: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """Both players' link positions [..., 2, nb, 3] and orientations [..., 2, nb, 4]."""
+        pos, quat = self._fk(qpos)
+        nb = self.layout.nb
+        return (pos.reshape(pos.shape[:-2] + (PLAYERS, nb, 3)), quat.reshape(quat.shape[:-2] + (PLAYERS, nb, 4)))
+
     def player_qpos(self, qpos: jax.Array) -> jax.Array:
         """[..., 2, nq1] from the scene's [..., 2 * nq1]."""
         return qpos.reshape(qpos.shape[:-1] + (PLAYERS, self.layout.nq))

@@ -60,15 +60,17 @@ def body_ground_contacts_mjx(m: mujoco.MjModel, data: mjx.Data, floor: str = "fl
 def contact_normal_forces_mjx(data: mjx.Data) -> jax.Array:
     """[ncon] normal force of every contact slot of ``data`` (0 where inactive), as
     ``mj_contactForce``'s first component: the constraint row's force for a frictionless contact,
-    the sum of the pyramid's edge forces for a pyramidal friction cone."""
+    the sum of the pyramid's edge forces for a pyramidal friction cone. The slots' rows are
+    static, so this is one gather and a masked sum."""
     c, f = data._impl.contact, data._impl.efc_force
-    if c.dim.shape[0] == 0:
+    adr, dim = np.asarray(c.efc_address), np.asarray(c.dim)
+    if adr.shape[0] == 0:
         return jnp.zeros((0,), f.dtype)
-    rows = []
-    for adr, dim in zip(np.asarray(c.efc_address), np.asarray(c.dim)):
-        n = 1 if dim == 1 else 2 * (int(dim) - 1)
-        rows.append(jnp.sum(f[int(adr):int(adr) + n]) if adr >= 0 else jnp.zeros((), f.dtype))
-    return jnp.stack(rows)
+    n = np.where(dim == 1, 1, 2 * (dim - 1))
+    k = np.arange(max(int(n.max()), 1))
+    rows = adr[:, None] + k[None]
+    valid = (adr[:, None] >= 0) & (k[None] < n[:, None])
+    return jnp.sum(jnp.where(valid, f[np.where(valid, rows, 0)], 0.0), -1)
 
 
 def channel_forces_mjx(data: mjx.Data, channels) -> jax.Array:
