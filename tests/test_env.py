@@ -204,3 +204,28 @@ def test_servo_power_matches_mujoco_actuator_forces(env):
     want = np.sum(np.abs(d.actuator_force * d.qvel[6:]))
     data = env._data0.replace(qpos=jnp.asarray(d.qpos, jnp.float32), qvel=jnp.asarray(d.qvel, jnp.float32))
     np.testing.assert_allclose(float(env.power(data, jnp.asarray(target, jnp.float32))), want, rtol=1e-4)
+
+
+@pytest.mark.parametrize("within", [True, False])
+def test_reference_windows_stay_within_the_joint_ranges(within):
+    """A clip held in a pose 0.3 rad beyond every joint's upper limit: with ``ref_within_limits``
+    the discriminators' reference windows are the views of the pose clamped to the ranges (what
+    the simulated character can show), without it those of the raw pose."""
+    ch_env = HumanoidEnv(EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")),
+                                   ref_within_limits=within),
+                         motion_libs=(MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0, 0, 0))]),) * 2)
+    hi = np.asarray(ch_env._hi)
+    beyond = make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), dof_pos=hi + 0.3, name="beyond")
+    lib = MotionLib.from_clips([beyond])
+    env = HumanoidEnv(ch_env.cfg, motion_libs=(lib, lib))
+    views = env.ref_disc_obs(jax.random.PRNGKey(0), 3)
+    qpos = np.asarray(qpos_qvel(sample(lib, jnp.zeros(1, jnp.int32), jnp.full(1, 0.5)))[0][0])
+    expect_q = qpos.copy()
+    if within:
+        expect_q[7:] = hi
+    pos, quat = env.poses_of(jnp.asarray(expect_q))
+    frames = env.cfg.groups[0].frames
+    for g, (links, anchor) in enumerate(env.group_idx):
+        one = O.disc_obs(jnp.broadcast_to(pos, (frames,) + pos.shape),
+                         jnp.broadcast_to(quat, (frames,) + quat.shape), links, int(anchor))
+        np.testing.assert_allclose(views[g], np.broadcast_to(one, views[g].shape), atol=1e-4)
