@@ -38,7 +38,7 @@ import numpy as np
 
 GHOST_PREFIX = "ghost_"
 MARKER_RADIUS = 0.08
-MARKER_RGBA = {"target": (0.1, 0.8, 0.2, 0.9), "aim": (0.9, 0.15, 0.1, 0.9)}
+MARKER_RGBA = {"target": (0.1, 0.8, 0.2, 0.9), "aim": (0.9, 0.15, 0.1, 0.9), "heading": (0.1, 0.4, 0.9, 0.9)}
 """Colours of the task markers by name (``Task.markers``); others are yellow."""
 GHOST_RGBA = (0.85, 0.9, 1.0, 0.3)
 DEFAULT_LINK_RGBA = (0.7, 0.7, 0.7, 1.0)
@@ -244,19 +244,7 @@ class SceneRenderer:
         mj.mj_comPos(self.model, self.data)  # the light tracks the CoM
         self.camera.lookat[:] = lookat
         self.renderer.update_scene(self.data, camera=self.camera, scene_option=self.option)
-        scn = self.renderer.scene
-        for seg, rgba in markers:
-            if scn.ngeom >= scn.maxgeom:
-                break
-            g = scn.geoms[scn.ngeom]
-            a, b = np.asarray(seg[0], np.float64), np.asarray(seg[1], np.float64)
-            rgba = np.asarray(rgba, np.float32)
-            if np.linalg.norm(b - a) < 1e-6:
-                mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_SPHERE, np.array([MARKER_RADIUS, 0, 0]), a, np.eye(3).ravel(), rgba)
-            else:
-                mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
-                mj.mjv_connector(g, mj.mjtGeom.mjGEOM_ARROW, 0.02, a, b)
-            scn.ngeom += 1
+        add_markers(self.renderer.scene, markers)
         return self.renderer.render().copy()
 
     def close(self) -> None:
@@ -267,6 +255,28 @@ class SceneRenderer:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def add_markers(scn: mj.MjvScene, markers: Sequence[tuple[np.ndarray, Sequence[float]]]) -> None:
+    """Appends task markers to a scene: a [2, 3] segment (from, to) of zero length is a sphere,
+    any other an arrow. Used by the video renderer and by the interactive viewer (``play.py``)."""
+    for seg, rgba in markers:
+        if scn.ngeom >= scn.maxgeom:
+            break
+        g = scn.geoms[scn.ngeom]
+        a, b = np.asarray(seg[0], np.float64), np.asarray(seg[1], np.float64)
+        rgba = np.asarray(rgba, np.float32)
+        if np.linalg.norm(b - a) < 1e-6:
+            mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_SPHERE, np.array([MARKER_RADIUS, 0, 0]), a, np.eye(3).ravel(), rgba)
+        else:
+            mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
+            mj.mjv_connector(g, mj.mjtGeom.mjGEOM_ARROW, 0.02, a, b)
+        scn.ngeom += 1
+
+
+def marker_list(markers: Mapping[str, np.ndarray]) -> list[tuple[np.ndarray, Sequence[float]]]:
+    """(segment, colour) pairs of one frame's markers (name -> [2, 3])."""
+    return [(np.asarray(seg), MARKER_RGBA.get(name, (0.9, 0.8, 0.1, 0.9))) for name, seg in markers.items()]
 
 
 def follow_lookat(root_pos: np.ndarray, smoothing: float = 0.9, height: float = 0.9) -> np.ndarray:
@@ -308,7 +318,7 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
             camera_distance, camera_azimuth, camera_elevation)
         for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress,
                       leave=False):
-            mk = [(seg[t], MARKER_RGBA.get(name, (0.9, 0.8, 0.1, 0.9))) for name, seg in (markers or {}).items()]
+            mk = marker_list({name: seg[t] for name, seg in (markers or {}).items()})
             yield sr.render(qpos_seq[t], None if ref_qpos_seq is None else ref_qpos_seq[t], lookat[t], mk)
 
 

@@ -213,6 +213,12 @@ class Task:
         """Evaluation metrics from per-step ``info`` arrays [T, E] over steps where ``alive``."""
         return {}
 
+    def steer(self, goal: Any, frame: LinkFrames, move: jax.Array, turn: jax.Array) -> Any:
+        """Interactive control (``python -m jaxmotion.play``), applied before every step: the
+        user moves the target by ``move`` [2] (world xy, m) and turns the goal direction by
+        ``turn`` (rad, about z). A steered goal never expires on its own. Default: unchanged."""
+        return goal
+
     def markers(self, goal: Any, frame: LinkFrames) -> dict[str, jax.Array]:
         """What the video draws of the goal: name -> [2, 3] world segment (from, to); a segment
         of zero length is a point (``render.py``: a sphere; otherwise an arrow)."""
@@ -249,6 +255,13 @@ def combine_weights(group_weights: tuple[float | None, ...], goal_weights: tuple
 
 def root_xy(frame: LinkFrames) -> jax.Array:
     return frame.pos[0, :2]
+
+
+def rotate_z(v: jax.Array, angle: jax.Array) -> jax.Array:
+    """``v`` [2] or [3] turned by ``angle`` (rad) about the world z axis."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    xy = jnp.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+    return jnp.concatenate([xy, v[2:]])
 
 
 def heading_angle(frame: LinkFrames) -> jax.Array:

@@ -27,7 +27,7 @@ import numpy as np
 from flax import struct
 
 from jaxmotion.envs.observations import LinkFrames
-from jaxmotion.tasks.base import Task, TaskStep, heading_angle, root_xy, to_heading
+from jaxmotion.tasks.base import Task, TaskStep, heading_angle, root_xy, rotate_z, to_heading
 
 _EPS = 1e-6
 
@@ -111,6 +111,13 @@ class Location(Task):
         info = {"distance": dist, "goal_ended": expired, "goal_reached": expired & reached, "inside": inside}
         return TaskStep(goal=goal, rewards=r[None], terminated=fail, info=info)
 
+    def steer(self, goal: LocationGoal, frame, move, turn) -> LocationGoal:
+        """The target moves by ``move``; the timer is held at its longest, and the overshoot
+        measure restarts from the current distance, so the user's target stays."""
+        target = goal.target + move
+        return goal.replace(target=target, timer=jnp.full_like(goal.timer, self.cfg.location.timer_range[1]),
+                            dist0=jnp.linalg.norm(target - root_xy(frame)))
+
     def markers(self, goal: LocationGoal, frame) -> dict[str, jax.Array]:
         p = jnp.concatenate([goal.target, jnp.full((1,), 0.1)])  # a ball lying on the floor
         return {"target": jnp.stack([p, p])}
@@ -170,6 +177,20 @@ class Heading(Task):
         kept = goal.replace(timer=goal.timer - 1, age=goal.age + 1)
         goal = jax.tree.map(lambda a, b: jnp.where(kept.timer <= 0, a, b), self.new_goal(rng, frame), kept)
         return TaskStep(goal=goal, rewards=r[None], terminated=jnp.zeros((), bool), info=info)
+
+    def steer(self, goal: HeadingGoal, frame, move, turn) -> HeadingGoal:
+        """``turn`` turns the heading; ``move`` along the heading changes the speed (within the
+        trained range)."""
+        lo, hi = self.cfg.heading.speed_range
+        speed = jnp.clip(goal.speed + jnp.sum(move * goal.direction), lo, hi)
+        return goal.replace(direction=rotate_z(goal.direction, turn), speed=speed,
+                            timer=jnp.full_like(goal.timer, self.cfg.heading.timer_range[1]))
+
+    def markers(self, goal: HeadingGoal, frame) -> dict[str, jax.Array]:
+        """A blue arrow on the floor from the root along the heading, 0.5 s of the target speed long."""
+        p = jnp.concatenate([root_xy(frame), jnp.full((1,), 0.05)])
+        d = jnp.concatenate([0.5 * goal.speed * goal.direction, jnp.zeros((1,))])
+        return {"heading": jnp.stack([p, p + d])}
 
     def summary(self, info, alive):
         m = alive & info["settled"]
@@ -239,6 +260,9 @@ class AimLocation(Location):
         info = dict(loc.info, aim_error_deg=ang, aiming=~inside)
         return TaskStep(goal=AimGoal(loc=loc.goal, aim=aim), rewards=jnp.concatenate([loc.rewards, r_aim[None]]),
                         terminated=loc.terminated, info=info)
+
+    def steer(self, goal: AimGoal, frame, move, turn) -> AimGoal:
+        return AimGoal(loc=super().steer(goal.loc, frame, move, turn), aim=rotate_z(goal.aim, turn))
 
     def markers(self, goal: AimGoal, frame) -> dict[str, jax.Array]:
         h = frame.pos[self._hand]
