@@ -39,7 +39,9 @@ import numpy as np
 GHOST_PREFIX = "ghost_"
 MARKER_RADIUS = 0.08
 MARKER_RGBA = {"target": (0.1, 0.8, 0.2, 0.9), "aim": (0.9, 0.15, 0.1, 0.9), "heading": (0.1, 0.4, 0.9, 0.9)}
-"""Colours of the task markers by name (``Task.markers``); others are yellow."""
+"""Colours of the task markers by name (``Task.markers``; a trailing number is ignored: ball0 is a
+ball); others are yellow."""
+MARKER_RADII = {"ball": 0.05}
 GHOST_RGBA = (0.85, 0.9, 1.0, 0.3)
 DEFAULT_LINK_RGBA = (0.7, 0.7, 0.7, 1.0)
 # One colour per body group, in the order of cfg.env.groups (tab10-like, opaque).
@@ -259,15 +261,18 @@ class SceneRenderer:
 
 def add_markers(scn: mj.MjvScene, markers: Sequence[tuple[np.ndarray, Sequence[float]]]) -> None:
     """Appends task markers to a scene: a [2, 3] segment (from, to) of zero length is a sphere,
-    any other an arrow. Used by the video renderer and by the interactive viewer (``play.py``)."""
-    for seg, rgba in markers:
+    any other an arrow. Used by the video renderer and by the interactive viewer (``play.py``).
+    A marker may carry its sphere radius as a third element (default ``MARKER_RADIUS``)."""
+    import mujoco as mj
+
+    for seg, rgba, *radius in markers:
         if scn.ngeom >= scn.maxgeom:
             break
         g = scn.geoms[scn.ngeom]
         a, b = np.asarray(seg[0], np.float64), np.asarray(seg[1], np.float64)
         rgba = np.asarray(rgba, np.float32)
         if np.linalg.norm(b - a) < 1e-6:
-            mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_SPHERE, np.array([MARKER_RADIUS, 0, 0]), a, np.eye(3).ravel(), rgba)
+            mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_SPHERE, np.array([radius[0] if radius else MARKER_RADIUS, 0, 0]), a, np.eye(3).ravel(), rgba)
         else:
             mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
             mj.mjv_connector(g, mj.mjtGeom.mjGEOM_ARROW, 0.02, a, b)
@@ -276,7 +281,8 @@ def add_markers(scn: mj.MjvScene, markers: Sequence[tuple[np.ndarray, Sequence[f
 
 def marker_list(markers: Mapping[str, np.ndarray]) -> list[tuple[np.ndarray, Sequence[float]]]:
     """(segment, colour) pairs of one frame's markers (name -> [2, 3])."""
-    return [(np.asarray(seg), MARKER_RGBA.get(name, (0.9, 0.8, 0.1, 0.9))) for name, seg in markers.items()]
+    return [(np.asarray(seg), MARKER_RGBA.get(name.rstrip("0123456789"), (0.9, 0.8, 0.1, 0.9)),
+             MARKER_RADII.get(name.rstrip("0123456789"), MARKER_RADIUS)) for name, seg in markers.items()]
 
 
 def follow_lookat(root_pos: np.ndarray, smoothing: float = 0.9, height: float = 0.9) -> np.ndarray:

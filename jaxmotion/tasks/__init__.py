@@ -4,8 +4,9 @@ Register a new one with ``TASKS["name"] = MyTask`` (a ``Task`` subclass taking `
 """
 
 from jaxmotion.tasks.base import (AimConfig, BoxingConfig, FencingConfig, HeadingConfig,  # noqa: F401
-                                  LocationConfig, Task, TaskConfig, TaskStep, TrackConfig, combine_weights)
+                                  JuggleConfig, LocationConfig, Task, TaskConfig, TaskStep, TrackConfig, combine_weights)
 from jaxmotion.tasks.bout import Boxing, Fencing
+from jaxmotion.tasks.juggle import JuggleLocation
 from jaxmotion.tasks.location import AimLocation, Heading, Location
 from jaxmotion.tasks.track import Track
 
@@ -14,6 +15,7 @@ TASKS: dict[str, type[Task]] = {
     "location": Location,
     "heading": Heading,
     "aim+location": AimLocation,
+    "juggle+location": JuggleLocation,
     "track": Track,
     "boxing": Boxing,
     "fencing": Fencing,

@@ -84,6 +84,14 @@ class AimConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class JuggleConfig:
+    """Juggling three balls (``tasks/juggle.py``; the schedule and reward are the authors')."""
+
+    weight: float = 0.6
+    """ω of the juggling reward (the authors': 0.6 juggling, 0.1 location, 0.06 arms, 0.24 body)."""
+
+
+@dataclasses.dataclass(frozen=True)
 class TrackConfig:
     """Motion tracking (Perpetual Humanoid Control; notes phc.md §0-§3): follow the init clips
     frame by frame. Defaults: the authors' code."""
@@ -159,6 +167,7 @@ class TaskConfig:
     heading: HeadingConfig = HeadingConfig()
     aim: AimConfig = AimConfig()
     track: TrackConfig = TrackConfig()
+    juggle: JuggleConfig = JuggleConfig()
     boxing: BoxingConfig = BoxingConfig()
     fencing: FencingConfig = FencingConfig()
 
