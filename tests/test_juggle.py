@@ -119,3 +119,32 @@ def test_longest_streak():
     catches = np.array([[1, 0], [1, 1], [0, 1], [1, 1], [1, 0]])
     misses = np.array([[0, 0], [0, 0], [1, 0], [0, 0], [0, 1]])
     assert J.longest_streak(catches, misses) == 3  # episode 1: 1, 1, 1 before its miss
+
+
+def test_task_reports_throws_and_release_error_in_a_scene_step():
+    """The task's own step on link frames: the left hand releases at step 0 at 1 m/s upward."""
+    from jaxmotion.envs.observations import LinkFrames
+    from jaxmotion.physics.character import character as make_character
+    from jaxmotion.tasks import TaskConfig, make_task
+
+    class _Env:
+        dt = DT
+        character = make_character()
+
+    task = make_task(TaskConfig(name="juggle+location"), _Env())
+    nb = len(_Env.character.body_names)
+    pos = np.zeros((nb, 3), np.float32)
+    pos[0] = [0, 0, 0.9]
+    vel = np.zeros((nb, 3), np.float32)
+    vel[_Env.character.body_index("left_hand")] = [0, 0, 1.0]
+    frame = LinkFrames(jnp.asarray(pos), jnp.tile(jnp.asarray([1.0, 0, 0, 0]), (nb, 1)), jnp.asarray(vel),
+                       jnp.zeros((nb, 3)))
+    goal = task.init(jax.random.PRNGKey(0), frame)
+    assert task.observe(goal, frame).shape == (task.goal_size,) == (23,)
+    out = task.step(goal, frame, frame, jax.random.PRNGKey(1))
+    assert int(out.info["throws"]) == 1
+    assert float(out.info["release_error"]) == pytest.approx(V_STAR - 1.0, rel=1e-5)
+    assert float(out.rewards[0]) == pytest.approx(0.5 * math.exp(-5 * (1.0 / V_STAR - 1) ** 2), rel=1e-5)
+    info = jax.tree.map(lambda v: np.asarray(v)[None, None], out.info)
+    s = task.summary(info, np.ones((1, 1), bool))
+    assert s["release_speed_error_m_s"] == pytest.approx(V_STAR - 1.0, rel=1e-5)

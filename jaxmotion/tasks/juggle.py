@@ -30,8 +30,9 @@ relative to the root's ground point and velocity, heading frame; zero when caugh
 the character throws next, and the left hand's throw phase in [0, 1). The authors' 23 dims, read
 from their description.
 
-**Metrics** (``eval``): catches per throw (catches over catches + misses) and the longest streak
-of catches without a miss, per episode; plus the location task's.
+**Metrics** (``eval``): catches per throw (catches over catches + misses), the longest streak
+of catches without a miss in an episode, and the mean |v_z - v*| of the releases; plus the
+location task's.
 """
 
 from __future__ import annotations
@@ -204,7 +205,10 @@ class JuggleLocation(Location):
         balls, thrown, caught, forced = step_balls(goal.balls, goal.t, hands, hand_vel, self.env.dt)
         r = hand_rewards(balls, thrown, hands, hand_vel, goal.t, self.env.dt, self._v_star).mean()
         loc = super().step(goal.loc, prev, frame, rng)
-        info = dict(loc.info, throws=thrown.sum(), catches=caught.sum(), misses=forced.sum())
+        # |v_z - v*| of this step's release (the hand that threw; 0 when none did).
+        thrower = jnp.where(thrown.any(), 1 - jnp.max(jnp.where(thrown, balls.to_hand, 0)), 0)
+        info = dict(loc.info, throws=thrown.sum(), catches=caught.sum(), misses=forced.sum(),
+                    release_error=jnp.where(thrown.any(), jnp.abs(hand_vel[thrower, 2] - self._v_star), 0.0))
         return TaskStep(goal=JuggleGoal(loc=loc.goal, balls=balls, t=goal.t + 1),
                         rewards=jnp.concatenate([r[None], loc.rewards]), terminated=loc.terminated, info=info)
 
@@ -224,6 +228,9 @@ class JuggleLocation(Location):
         misses = (np.asarray(info["misses"]) * alive).sum()
         out["catches_per_throw"] = float(catches / (catches + misses)) if catches + misses else float("nan")
         out["catches"], out["misses"] = int(catches), int(misses)
+        throws = (np.asarray(info["throws"]) * alive).sum()
+        out["release_speed_error_m_s"] = (float((np.asarray(info["release_error"]) * alive).sum() / throws)
+                                          if throws else float("nan"))
         out["longest_streak"] = longest_streak(np.asarray(info["catches"]) * alive, np.asarray(info["misses"]) * alive)
         return out
 
