@@ -57,6 +57,17 @@ def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
     return experiment, cfg, learner, ts
 
 
+def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:
+    """Why the policies of these runs cannot take turns on one character (their observation or
+    action sizes differ from the first run's), or None."""
+    (first, l0), sizes = runs[0], lambda lr: (lr.env.obs_size, lr.env.action_size)
+    for r, lr in runs[1:]:
+        if sizes(lr) != sizes(l0):
+            return (f"{r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
+                    f"{first} has {l0.env.obs_size}/{l0.env.action_size}: they cannot take turns")
+    return None
+
+
 def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int = 0):
     """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape.
 
@@ -302,12 +313,10 @@ def main(argv: list[str] | None = None) -> int:
     policies, switch_steps = ts, 0
     if args.switch:
         others = [load_run(r) for r in args.switch]
-        for r, (_, _, lr, _) in zip(args.switch, others):
-            if (lr.env.obs_size, lr.env.action_size) != (learner.env.obs_size, learner.env.action_size):
-                print(f"error: {r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
-                      f"{args.run} has {learner.env.obs_size}/{learner.env.action_size}: they cannot take turns",
-                      file=sys.stderr)
-                return 2
+        problem = spaces_mismatch([(args.run, learner)] + [(r, o[2]) for r, o in zip(args.switch, others)])
+        if problem:
+            print(f"error: {problem}", file=sys.stderr)
+            return 2
         policies = (ts,) + tuple(o[3] for o in others)
         switch_steps = max(int(round(args.switch_every / learner.env.dt)), 1)
     # One rollout serves the metrics and the video / HTML replay (its episode 0).

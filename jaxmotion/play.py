@@ -147,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: play opens an interactive window, but there is {problem}. "
               "Use `python -m jaxmotion.eval RUN --video out.mp4` to render off-screen.", file=sys.stderr)
         return 2
-    from jaxmotion.eval import load_run
+    from jaxmotion.eval import load_run, spaces_mismatch
 
     try:
         loaded = [load_run(r) for r in args.runs]
@@ -158,12 +158,10 @@ def main(argv: list[str] | None = None) -> int:
     if learner.env.cfg.players != 1:
         print("error: play drives one character; two-player runs are shown by eval --video / --html", file=sys.stderr)
         return 2
-    for r, (_, _, lr, _) in zip(args.runs, loaded):
-        if (lr.env.obs_size, lr.env.action_size) != (learner.env.obs_size, learner.env.action_size):
-            print(f"error: {r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
-                  f"{args.runs[0]} has {learner.env.obs_size}/{learner.env.action_size}: they cannot take turns",
-                  file=sys.stderr)
-            return 2
+    problem = spaces_mismatch([(r, o[2]) for r, o in zip(args.runs, loaded)])
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     player = Player(learner, [ts for *_, ts in loaded], seed=args.seed)
     try:
         _view(player, " | ".join(e for e, *_ in loaded))

@@ -100,3 +100,11 @@ def test_no_display_is_one_clear_line():
     assert r.returncode == 2
     assert "no display" in r.stderr and "--video" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_runs_with_other_spaces_cannot_take_turns():
+    from jaxmotion.eval import spaces_mismatch
+    loc, head = _learner("location"), _learner("heading")
+    assert spaces_mismatch([("a", loc), ("b", _learner("location"))]) is None
+    msg = spaces_mismatch([("a", loc), ("b", head)])
+    assert msg and "b has observation/action sizes" in msg and "cannot take turns" in msg
