@@ -81,15 +81,24 @@ def test_arrows_move_the_target_and_page_keys_turn_the_aim(aim_player):
 
 
 def test_heading_is_turned_and_its_speed_kept_in_range():
-    learner = _learner("heading")
-    with jit_enabled():
-        ts = jax.jit(learner.init)(jax.random.PRNGKey(0))
-        p = play.Player(learner, [ts])
-        d0, s0 = np.asarray(p.state.goal.direction), float(p.state.goal.speed)
-        goal = learner.env.task.steer(p.state.goal, jax.tree.map(lambda x: x[-1], p.state.hist),
-                                      jnp.asarray(10.0 * d0), jnp.asarray(math.pi / 2))
-    np.testing.assert_allclose(np.asarray(goal.direction), [-d0[1], d0[0]], atol=1e-6)
-    assert float(goal.speed) == pytest.approx(1.5) and s0 <= 1.5
+    from jaxmotion.envs.observations import LinkFrames
+    from jaxmotion.physics.character import character
+    from jaxmotion.tasks import make_task
+
+    class _Env:
+        dt = 1.0 / 30.0
+
+    _Env.character = character()
+    task = make_task(TaskConfig(name="heading", heading=HeadingConfig(speed_range=(1.0, 1.5))), _Env())
+    nb = len(_Env.character.body_names)
+    frame = LinkFrames(jnp.zeros((nb, 3)), jnp.tile(jnp.asarray([1.0, 0, 0, 0]), (nb, 1)), jnp.zeros((nb, 3)),
+                       jnp.zeros((nb, 3)))
+    goal = task.init(jax.random.PRNGKey(0), frame)
+    d0 = np.asarray(goal.direction)
+    steered = task.steer(goal, frame, jnp.asarray(10.0 * d0), jnp.asarray(math.pi / 2))
+    np.testing.assert_allclose(np.asarray(steered.direction), [-d0[1], d0[0]], atol=1e-6)
+    assert float(steered.speed) == pytest.approx(1.5)  # pushed along the heading, held at the top
+    assert int(steered.timer) == task.cfg.heading.timer_range[1]  # a steered goal does not expire
 
 
 def test_no_display_is_one_clear_line():
