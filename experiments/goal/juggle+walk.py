@@ -6,7 +6,13 @@ Two body groups: the arms (both upper arms, forearms and hands; torso anchor; re
 (heading frame) the LAFAN1 walk clips. ω 0.06 arms / 0.24 body / 0.6 juggling / 0.1 location,
 as the authors. Location settings for juggling (notes §1): radius 0.75 m, speed 1-1.2 m/s,
 timers 90-149 steps, goals within ±60° at v0 = 1 m/s, no overshoot termination. The balls are
-the task's own ballistic state (not MuJoCo bodies yet): see `tasks/juggle.py`."""
+the task's own ballistic state (not MuJoCo bodies yet): see `tasks/juggle.py`.
+
+Measured on the 2-core CPU (2026-12-02; `make train EXP=goal/juggle+walk ARGS="iterations=400
+eval_every=0"`, 1.64M samples in 13.7 min, then `python -m jaxmotion.eval <run> --episodes 8`
+and the same with `--untrained`): catches per throw 7/19 (untrained 0/4), longest streak 1,
+release-speed error 3.06 m/s (untrained 2.85), every episode a fall (1.24 s; untrained 0.82 s).
+A start, far from the paper's juggling walk, which needs the 10^8-sample budget."""
 
 from _common import WALK, GroupConfig, LocationConfig, TaskConfig, goal
 
