@@ -259,7 +259,7 @@ class SceneRenderer:
         self.close()
 
 
-def add_markers(scn: mj.MjvScene, markers: Sequence[tuple[np.ndarray, Sequence[float]]]) -> None:
+def add_markers(scn, markers: Sequence[tuple]) -> None:
     """Appends task markers to a scene: a [2, 3] segment (from, to) of zero length is a sphere,
     any other an arrow. Used by the video renderer and by the interactive viewer (``play.py``).
     A marker may carry its sphere radius as a third element (default ``MARKER_RADIUS``)."""
@@ -279,8 +279,8 @@ def add_markers(scn: mj.MjvScene, markers: Sequence[tuple[np.ndarray, Sequence[f
         scn.ngeom += 1
 
 
-def marker_list(markers: Mapping[str, np.ndarray]) -> list[tuple[np.ndarray, Sequence[float]]]:
-    """(segment, colour) pairs of one frame's markers (name -> [2, 3])."""
+def marker_list(markers: Mapping[str, np.ndarray]) -> list[tuple[np.ndarray, Sequence[float], float]]:
+    """(segment, colour, sphere radius) of one frame's markers (name -> [2, 3])."""
     return [(np.asarray(seg), MARKER_RGBA.get(name.rstrip("0123456789"), (0.9, 0.8, 0.1, 0.9)),
              MARKER_RADII.get(name.rstrip("0123456789"), MARKER_RADIUS)) for name, seg in markers.items()]
 

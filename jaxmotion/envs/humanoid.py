@@ -219,7 +219,7 @@ class HumanoidEnv:
         if self.cfg.init_within_limits:
             # Some clips leave the joint ranges (the squat's right hip by up to 75 degrees); started
             # there, the limit constraint throws the character (10-20% of resets were unstable).
-            qpos_h = qpos_h.at[..., 7:].set(jnp.clip(qpos_h[..., 7:], self._lo, self._hi))
+            qpos_h = self.within_limits(qpos_h)
         if self.cfg.init_above_ground:
             # Lift the whole window so the lowest body geom of the start pose is not in the floor
             # (clamped joints or a clip made for another skeleton can put a foot 10 cm deep).
@@ -257,10 +257,14 @@ class HumanoidEnv:
             # discriminator can learn to tell from simulated frames.
             qpos = qpos_of(w)
             if self.cfg.ref_within_limits:
-                qpos = qpos.at[..., 7:].set(jnp.clip(qpos[..., 7:], self._lo, self._hi))
+                qpos = self.within_limits(qpos)
             pos, quat = self.poses_of(qpos)
             out.append(jax.vmap(lambda p, q: O.disc_obs(p, q, links, int(anchor)))(pos, quat))
         return tuple(out)
+
+    def within_limits(self, qpos: jax.Array) -> jax.Array:
+        """``qpos`` [..., nq] with the joint angles clamped to the joint ranges (root untouched)."""
+        return qpos.at[..., 7:].set(jnp.clip(qpos[..., 7:], self._lo, self._hi))
 
     def lowest_point(self, qpos: jax.Array) -> jax.Array:
         """Height of the lowest point of the character's spheres, capsules and boxes at ``qpos``."""
