@@ -156,6 +156,10 @@ class TrainConfig:
     meta: str = ""
     """Incremental learning: a run folder (or a folder of runs: the newest) whose frozen policy
     is the meta policy (``meta.py``); empty: none."""
+    player_policies: str = "shared"
+    """Two-player scenes: 'shared' (one policy, critic and normaliser act for both players, each
+    player a sample of its own) or 'separate' (each player has its own policy, critic, PopArt,
+    observation statistics and optimiser, trained on its own transitions only)."""
     hard_negatives_every: int = 0
     """Tracking: every this many chunks, run every clip once from t = 0 and reset to the clips it
     failed more often (``track_eval.hard_negative_update``); 0: never."""
@@ -190,6 +194,16 @@ class TrainState:
     """Hard-negative mining: the reset's clip probabilities [C] (``init_lib.clip_weight`` scaled), else None."""
 
 
+AGENT_FIELDS = ("policy_params", "critic_params", "opt_state", "obs_norm", "popart")
+"""The ``TrainState`` fields that belong to one acting agent; with ``player_policies='separate'``
+each has a leading player axis."""
+
+
+def agent_of(ts: TrainState, player: int) -> TrainState:
+    """``ts`` with one player's agent (``player_policies='separate'``), as a shared-policy state."""
+    return ts.replace(**{f: jax.tree.map(lambda x: x[player], getattr(ts, f)) for f in AGENT_FIELDS})
+
+
 @struct.dataclass
 class Transition:
     """One control step of the rollout, for every environment ([T, B, ...] after the scan)."""
@@ -217,6 +231,13 @@ class Learner:
         self.env = env if env is not None else make_env(cfg.env)
         self.players = getattr(self.env, "players", 1)
         """Players per environment: each is a sample of its own (one shared policy, self-play)."""
+        if cfg.player_policies not in ("shared", "separate"):
+            raise ValueError(f"player_policies must be 'shared' or 'separate', got {cfg.player_policies!r}")
+        self.separate = cfg.player_policies == "separate"
+        """One policy (and critic, normaliser, PopArt, optimiser) per player: the agent's state has
+        a leading player axis (``AGENT_FIELDS``)."""
+        if self.separate and (self.players < 2 or cfg.meta):
+            raise ValueError("player_policies=separate needs a two-player scene (env.players=2) and no meta policy")
         task = self.env.task
         self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)
         n_obj = len(self.objective_names)
@@ -278,20 +299,28 @@ class Learner:
                              f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})")
 
     # ---- init ----------------------------------------------------------------------------
+    def init_agent(self, k_pol: jax.Array, k_crit: jax.Array) -> dict:
+        """One agent's learnable state (the ``AGENT_FIELDS`` of a ``TrainState``)."""
+        pp = self.policy.init(k_pol)
+        cp = self.critic.init(k_crit)
+        return dict(policy_params=pp, critic_params=cp, opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
+                    obs_norm=N.normalizer_init(self.body_obs_size), popart=PA.popart_init(self.num_objectives))
+
     def init(self, rng: jax.Array) -> TrainState:
         """A fresh TrainState (un-sharded; see ``shard_state``)."""
         k_env, k_pol, k_crit, k_disc, rng = jax.random.split(rng, 5)
         env_state, obs = jax.vmap(self.env.reset)(jax.random.split(k_env, self.cfg.ppo.num_envs))
-        pp = self.policy.init(k_pol)
-        cp = self.critic.init(k_crit)
+        if self.separate:  # one agent per player, independently initialised
+            agent = jax.vmap(self.init_agent)(jax.random.split(k_pol, self.players),
+                                              jax.random.split(k_crit, self.players))
+        else:
+            agent = self.init_agent(k_pol, k_crit)
         dps = tuple(d.init(k) for d, k in zip(self.discs, jax.random.split(k_disc, len(self.discs))))
         return TrainState(
-            env_state=env_state, obs=obs, policy_params=pp, critic_params=cp, disc_params=dps,
-            opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
+            env_state=env_state, obs=obs, disc_params=dps,
             disc_opt_state=tuple(self.disc_optimizer.init(p) for p in dps),
-            obs_norm=N.normalizer_init(self.body_obs_size),
             disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
-            popart=PA.popart_init(self.num_objectives), rng=rng, iteration=jnp.zeros((), jnp.int32),
+            rng=rng, iteration=jnp.zeros((), jnp.int32), **agent,
             meta=self.meta.state if self.meta else None,
             clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
             # A copy: the chunk donates the state, which must not delete the library's own array.
@@ -320,7 +349,20 @@ class Learner:
             rng: jax.Array | None) -> tuple[jax.Array, jax.Array, jax.Array]:
         """Samples (or, with ``rng=None``, takes the mean) action [B, A], its log-prob [B] and the
         meta action it builds on ([B, A]; [B, 0] without a meta policy). ``ts``: anything with
-        ``policy_params``, ``obs_norm`` and ``meta``."""
+        ``policy_params``, ``obs_norm`` and ``meta``. With separate player policies ``obs`` is
+        [..., P, D] and player p's policy acts on ``obs[..., p, :]``."""
+        if not self.separate:
+            return self._act(ts, obs, rng)
+
+        def one(policy_params, obs_norm, o, p):
+            sub = PolicyState(policy_params=policy_params, obs_norm=obs_norm, meta=None)
+            return self._act(sub, o, None if rng is None else jax.random.fold_in(rng, p))
+
+        a, logp, a_meta = jax.vmap(one)(ts.policy_params, ts.obs_norm, jnp.moveaxis(obs, -2, 0),
+                                        jnp.arange(self.players))
+        return jnp.moveaxis(a, 0, -2), jnp.moveaxis(logp, 0, -1), jnp.moveaxis(a_meta, 0, -2)
+
+    def _act(self, ts, obs, rng):
         if self.meta is None:
             a_meta = jnp.zeros(obs.shape[:-1] + (0,), obs.dtype)
         else:
@@ -341,7 +383,8 @@ class Learner:
                              out_specs=P("data"), check_vma=False)
 
     def rollout(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, Transition]:
-        """Unrolls the policy for ``horizon`` control steps in every environment.
+        """Unrolls the policy for ``horizon`` control steps in every environment: [T, B, ...]
+        (two players with a shared policy: [T, B * P, ...]; separate policies: [T, B, P, ...]).
 
         Each environment gets one fresh reset state per rollout, made before the scan, instead of
         a reset computed (and mostly thrown away) on every step: on the 2-core CPU that reset was
@@ -364,8 +407,8 @@ class Learner:
 
         keys = jax.random.split(key, self.cfg.ppo.horizon)
         (env_state, obs), traj = jax.lax.scan(step, (ts.env_state, ts.obs), keys)
-        if self.players > 1:  # [T, B, P, ...] -> [T, B * P, ...]: every player is a sample
-            traj = jax.tree.map(lambda x: x.reshape((x.shape[0], x.shape[1] * x.shape[2]) + x.shape[3:]), traj)
+        if self.players > 1 and not self.separate:  # every player is a sample of the shared policy
+            traj = players_as_samples(traj)
         return ts.replace(env_state=env_state, obs=obs, rng=rng), traj
 
     # ---- discriminators --------------------------------------------------------------------
@@ -484,25 +527,55 @@ class Learner:
         return ts, metrics
 
     # ---- one iteration -------------------------------------------------------------------
+    def ppo_step_players(self, ts: TrainState, traj: Transition, rewards: jax.Array):
+        """``ppo_step`` for every player's own agent on its own transitions ([T, B, P, ...])."""
+        keys = jax.random.split(ts.rng, self.players + 1)
+        agents = {f: getattr(ts, f) for f in AGENT_FIELDS}
+
+        def one(agent, traj_p, rewards_p, key):
+            sub, m = self.ppo_step(ts.replace(rng=key, **agent), traj_p, rewards_p)
+            return {f: getattr(sub, f) for f in AGENT_FIELDS}, m
+
+        agents, m = jax.vmap(one, in_axes=(0, 2, 2, 0))(agents, traj, rewards, keys[1:])
+        return ts.replace(rng=keys[0], **agents), jax.tree.map(lambda x: jnp.mean(x, 0), m)
+
+    def update_obs_norm(self, norm: N.NormalizerState, traj: Transition) -> N.NormalizerState:
+        """The body-state statistics moved by a rollout's valid (not unstable) observations."""
+        def upd(norm, obs, unstable):
+            body = obs[..., :self.body_obs_size]
+            return N.normalizer_update(norm, body.reshape(-1, body.shape[-1]), ~unstable.reshape(-1))
+        if self.separate:
+            return jax.vmap(upd, in_axes=(0, 2, 2))(norm, traj.obs, traj.unstable)
+        return upd(norm, traj.obs, traj.unstable)
+
     def iteration(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, dict]:
         ts, traj = self.rollout(ts, mesh)
-        ts, rewards, metrics = self.disc_step(ts, traj)
-        rewards = jnp.concatenate([rewards, traj.task_reward], -1)
-        for name, r in zip(self.env.task.reward_names, jnp.moveaxis(traj.task_reward, -1, 0)):
+        flat = players_as_samples(traj) if self.separate else traj
+        ts, rewards, metrics = self.disc_step(ts, flat)
+        rewards = jnp.concatenate([rewards, flat.task_reward], -1)
+        for name, r in zip(self.env.task.reward_names, jnp.moveaxis(flat.task_reward, -1, 0)):
             metrics[f"reward/{name}"] = jnp.mean(r)
-        for k, v in traj.info.items():
+        for k, v in flat.info.items():
             metrics[f"task/{k}"] = jnp.mean(v.astype(jnp.float32))
-        ts, m = self.ppo_step(ts, traj, rewards)
+        if self.separate:
+            T, B = traj.terminated.shape[:2]
+            ts, m = self.ppo_step_players(ts, traj, rewards.reshape((T, B, self.players) + rewards.shape[2:]))
+        else:
+            ts, m = self.ppo_step(ts, traj, rewards)
         metrics.update(m)
         # Observation statistics move after the update, so the update saw the rollout's own.
-        valid = ~traj.unstable.reshape(-1)
-        body = traj.obs[..., :self.body_obs_size]
-        obs_norm = N.normalizer_update(ts.obs_norm, body.reshape(-1, body.shape[-1]), valid)
+        obs_norm = self.update_obs_norm(ts.obs_norm, traj)
+        traj = flat
         done = traj.terminated | traj.truncated
         metrics["env/terminated"] = jnp.mean(traj.terminated)
         metrics["env/unstable"] = jnp.mean(traj.unstable)
         metrics["env/episodes_done"] = jnp.sum(done)
         return ts.replace(obs_norm=obs_norm, iteration=ts.iteration + 1), metrics
+
+
+def players_as_samples(traj: Transition) -> Transition:
+    """[T, B, P, ...] -> [T, B * P, ...]: every player of every environment a sample."""
+    return jax.tree.map(lambda x: x.reshape((x.shape[0], x.shape[1] * x.shape[2]) + x.shape[3:]), traj)
 
 
 # ---- sharding and the compiled chunk -----------------------------------------------------
