@@ -315,7 +315,7 @@ def prepare_rollout(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, 
 
 def prepare_train(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, dict[str, float]]:
     """Whole training iterations (``make_train_chunk``, ``chunk`` of them per call), donated."""
-    from jaxmotion.trainer import make_mesh, make_train_chunk, shard_state
+    from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
 
     learner, tc = _learner(cfg, batch, backend)
     mesh = make_mesh()

@@ -1,6 +1,6 @@
 """``python -m jaxmotion.train <experiment> [key=value ...]``: train, log, checkpoint, resume.
 
-Python only drives the compiled chunks (``trainer.make_train_chunk``): it shows a progress bar,
+Python only drives the compiled chunks (``loop.make_train_chunk``): it shows a progress bar,
 appends ``metrics.jsonl``, writes TensorBoard events and orbax checkpoints between chunks.
 ``resume=<run-folder>`` continues a killed run from its latest checkpoint; on CPU the result is
 identical to an uninterrupted run (same chunking, the RNG lives in the checkpointed state).
@@ -23,7 +23,8 @@ import numpy as np
 
 from jaxmotion import checkpoint as ckpt
 from jaxmotion import config as C
-from jaxmotion.trainer import Learner, TrainConfig, TrainState, make_mesh, make_train_chunk, shard_state
+from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
+from jaxmotion.trainer import Learner, TrainConfig, TrainState
 from jaxmotion.data import cli_errors
 
 

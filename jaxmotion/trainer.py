@@ -1,9 +1,9 @@
-"""The compiled learning loop: rollout, discriminator update, rewards, GAE, PopArt, PPO.
+"""The learner: rollout, discriminator update, rewards, GAE, PopArt, PPO.
 
-One iteration (``_iteration``) is a pure function of a ``TrainState``; ``make_train_chunk``
-scans ``K`` of them under one ``jax.jit`` with the state donated. The environment batch is
-sharded over ``jax.devices()`` along a ``data`` mesh axis and everything else is replicated, so
-XLA inserts the gradient all-reduce (synchronous data parallelism, as in DD-PPO).
+One iteration (``Learner.iteration``) is a pure function of a ``TrainState``;
+``loop.make_train_chunk`` scans ``K`` of them under one ``jax.jit`` with the state donated and
+the environment batch sharded over a ``data`` mesh axis (synchronous data parallelism, as in
+DD-PPO).
 
 Objectives: one per body-group discriminator and one per reward the task names
 (``env.task.reward_names``), each with its own critic head, GAE and PopArt normaliser; advantages
@@ -24,7 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from flax import struct
-from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
+from jax.sharding import Mesh, PartitionSpec as P
 
 from jaxmotion.algos import disc as D
 from jaxmotion.algos import gae as G
@@ -307,7 +307,7 @@ class Learner:
                     obs_norm=N.normalizer_init(self.body_obs_size), popart=PA.popart_init(self.num_objectives))
 
     def init(self, rng: jax.Array) -> TrainState:
-        """A fresh TrainState (un-sharded; see ``shard_state``)."""
+        """A fresh TrainState (un-sharded; see ``loop.shard_state``)."""
         k_env, k_pol, k_crit, k_disc, rng = jax.random.split(rng, 5)
         env_state, obs = jax.vmap(self.env.reset)(jax.random.split(k_env, self.cfg.ppo.num_envs))
         if self.separate:  # one agent per player, independently initialised
@@ -363,6 +363,7 @@ class Learner:
         return jnp.moveaxis(a, 0, -2), jnp.moveaxis(logp, 0, -1), jnp.moveaxis(a_meta, 0, -2)
 
     def _act(self, ts, obs, rng):
+        """``act`` for one agent (the shared policy, or one player's own)."""
         if self.meta is None:
             a_meta = jnp.zeros(obs.shape[:-1] + (0,), obs.dtype)
         else:
@@ -576,39 +577,3 @@ class Learner:
 def players_as_samples(traj: Transition) -> Transition:
     """[T, B, P, ...] -> [T, B * P, ...]: every player of every environment a sample."""
     return jax.tree.map(lambda x: x.reshape((x.shape[0], x.shape[1] * x.shape[2]) + x.shape[3:]), traj)
-
-
-# ---- sharding and the compiled chunk -----------------------------------------------------
-def make_mesh(devices=None) -> Mesh:
-    """A 1-D mesh over ``devices`` (default: all) with axis name ``data``."""
-    devices = jax.devices() if devices is None else devices
-    return Mesh(np.asarray(devices), ("data",))
-
-
-def state_shardings(ts: TrainState, mesh: Mesh):
-    """Env states and observations split along the batch axis; everything else replicated."""
-    batch = NamedSharding(mesh, P("data"))
-    rep = NamedSharding(mesh, P())
-    sh = jax.tree.map(lambda _: rep, ts)
-    return sh.replace(env_state=jax.tree.map(lambda _: batch, ts.env_state), obs=batch)
-
-
-def shard_state(ts: TrainState, mesh: Mesh) -> TrainState:
-    return jax.device_put(ts, state_shardings(ts, mesh))
-
-
-def make_train_chunk(learner: Learner, mesh: Mesh, chunk: int, example: TrainState):
-    """``chunk`` iterations in one ``lax.scan`` under one ``jax.jit`` (state donated).
-
-    Returns ``f(ts) -> (ts, metrics)`` with metrics stacked over the chunk.
-    """
-    sh = state_shardings(example, mesh)
-
-    def run(ts):
-        def body(ts, _):
-            ts, m = learner.iteration(ts, mesh)
-            ts = jax.lax.with_sharding_constraint(ts, sh)
-            return ts, m
-        return jax.lax.scan(body, ts, None, length=chunk)
-
-    return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, None), donate_argnums=0)

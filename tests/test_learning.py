@@ -11,8 +11,8 @@ from conftest import jit_enabled
 from jaxmotion import eval as E
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
-from jaxmotion.trainer import (DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig, make_mesh,
-                               make_train_chunk, shard_state)
+from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
+from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
 ITERS = 240
 CHUNK = 40

@@ -18,8 +18,8 @@ from flax import struct
 
 from conftest import jit_enabled
 from jaxmotion.envs.humanoid import EnvConfig, StepOut
-from jaxmotion.trainer import (Learner, NetConfig, PPOConfig, TrainConfig, agent_of, make_mesh,
-                               make_train_chunk, shard_state)
+from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
+from jaxmotion.trainer import Learner, NetConfig, PPOConfig, TrainConfig, agent_of
 
 TARGETS = (0.5, -0.5)
 

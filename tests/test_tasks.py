@@ -279,7 +279,7 @@ def test_short_location_training_beats_untrained_policies():
     the targets than untrained policies do, by more than the spread of untrained seeds."""
     from conftest import jit_enabled
     from jaxmotion import eval as E
-    from jaxmotion.trainer import make_mesh, make_train_chunk, shard_state
+    from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
 
     iters, chunk, seeds = 240, 40, 3
     stand = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])

@@ -191,8 +191,8 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
     closer (g-MPJPE over the frames played) than the same networks untrained, by more than the
     spread of untrained seeds."""
     from jaxmotion import track_eval as TE
-    from jaxmotion.trainer import (DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig, make_mesh,
-                                   make_train_chunk, shard_state)
+    from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
+    from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
     iters, chunk, seeds = 200, 40, 3
     clips = [make_test_clip(40, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87, name="stand"), _moving_clip(40)]
     lib = MotionLib.from_clips(clips)
