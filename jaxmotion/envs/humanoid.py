@@ -85,6 +85,10 @@ class EnvConfig:
     every reference pose is one the simulated character can show. The shared squat leaves the
     hip and knee ranges by up to 17 degrees in 61% of its frames; unclamped, those frames are
     a feature no policy can match."""
+    level_feet: tuple[str, ...] = ()
+    """Clips (file stems or path endings) whose reference is levelled where both feet are
+    planted: the body tilted a few degrees about the root so that both soles rest on the floor
+    (``motion/level.py``). For clips retargeted onto uneven feet, like the shared squat."""
     max_qvel: float = 100.0
     """|qvel| above this counts as unstable physics: the environment is reset."""
     task: TaskConfig = TaskConfig()
@@ -163,12 +167,18 @@ class HumanoidEnv:
             self.groups.append(resolve_group({"name": g.name, "links": links, "anchor": anchor}, ch))
         self.group_idx = [group_indices(g, ch) for g in self.groups]
         if motion_libs is None:
-            motion_libs = [load_motionlib(g.motions, ch, drop_props=cfg.drop_props) for g in cfg.groups]
+            motion_libs = [load_motionlib(g.motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet)
+                           for g in cfg.groups]
         self.motion_libs = tuple(motion_libs)
         if init_lib is None:
-            init_lib = (load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props) if cfg.init_motions
+            init_lib = (load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet)
+                        if cfg.init_motions
                         else self.motion_libs[0])
         self.init_lib = init_lib
+        names = {n for lib in (*self.motion_libs, init_lib) for n in (*lib.clip_names, *lib.clip_paths)}
+        unknown = [p for p in cfg.level_feet if not any(n == p or n.endswith(p) for n in names)]
+        if unknown:
+            raise ValueError(f"EnvConfig.level_feet names clips that are not loaded: {unknown}")
         self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
         self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
         self._data0 = mjx.make_data(self.model)

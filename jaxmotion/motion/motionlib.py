@@ -150,14 +150,21 @@ class MotionLib:
 
 def load_motionlib(paths: str | os.PathLike | Iterable[str | os.PathLike],
                    character: Character | None = None,
-                   weights: Sequence[float] | None = None, drop_props: bool = False) -> MotionLib:
+                   weights: Sequence[float] | None = None, drop_props: bool = False,
+                   level: Sequence[str] = ()) -> MotionLib:
     """Loads files/folders (see ``loaders.load_clips``) into a ``MotionLib``. ``drop_props``: load
-    sword-and-shield clips onto the 15-body humanoid (``clip.drop_sword_shield``)."""
+    sword-and-shield clips onto the 15-body humanoid (``clip.drop_sword_shield``). ``level``: clip
+    names (file stems) or path endings whose frames with both feet planted are levelled
+    (``level.level_feet``)."""
     from jaxmotion.motion.clip import drop_sword_shield
+    from jaxmotion.motion.level import level_feet
     from jaxmotion.motion.loaders import load_clips
     if drop_props and character is not None and not character.sword_shield:
-        return MotionLib.from_clips([drop_sword_shield(c) for c in load_clips(paths, None)], weights)
-    return MotionLib.from_clips(load_clips(paths, character), weights)
+        clips = [drop_sword_shield(c) for c in load_clips(paths, None)]
+    else:
+        clips = load_clips(paths, character)
+    wanted = lambda c: any(c.name == p or (c.path and c.path.endswith(p)) for p in level)
+    return MotionLib.from_clips([level_feet(c) if wanted(c) else c for c in clips], weights)
 
 
 def _frame_pair(lib: MotionLib, clip: jax.Array, tc: jax.Array):
