@@ -85,9 +85,7 @@ def level_feet(clip: Clip, planted: float = 0.1, iterations: int = 4, within_lim
         qpos[:, 7:] = np.clip(qpos[:, 7:], rng[:, 0], rng[:, 1])
     soles = sole_points(clip, qpos)
     mask = np.all(soles[:, :, 2] < planted, axis=1)
-    if not mask.any():
-        return clip
-    for _ in range(iterations):
+    for _ in range(iterations if mask.any() else 0):
         d = soles[:, 0] - soles[:, 1]
         sep = np.maximum(np.linalg.norm(d[:, :2], axis=-1), 1e-3)
         # Turning by theta about a = (d_y, -d_x, 0) / sep raises the right sole by theta * sep
