@@ -229,3 +229,24 @@ def test_reference_windows_stay_within_the_joint_ranges(within):
         one = O.disc_obs(jnp.broadcast_to(pos, (frames,) + pos.shape),
                          jnp.broadcast_to(quat, (frames,) + quat.shape), links, int(anchor))
         np.testing.assert_allclose(views[g], np.broadcast_to(one, views[g].shape), atol=1e-4)
+
+
+def test_lowest_point_matches_mujoco(env):
+    """The start's lift above the floor uses the lowest geom point of the lean kinematics; MuJoCo C
+    poses the same geoms for the reference."""
+    from jaxmotion.motion.level import _lowest_points
+    m = sim.mj_model(env.cfg.physics)
+    d = mujoco.MjData(m)
+    geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0 and m.geom_type[g] in (2, 3, 6)]
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        q = m.qpos0.copy()
+        q[2] = 0.3
+        q[3:7] = rng.normal(size=4)
+        q[3:7] /= np.linalg.norm(q[3:7])
+        q[7:] = rng.uniform(-1.0, 1.0, m.nq - 7)
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        want = _lowest_points(m, d, geoms)[2]
+        got = float(env.lowest_point(jnp.asarray(q, jnp.float32)))
+        assert abs(got - want) < 1e-5, (got, want)

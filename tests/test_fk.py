@@ -68,6 +68,8 @@ def test_link_poses_and_velocities_match_mujoco(model):
     qvel = jnp.asarray(np.stack([s[1] for s in states]), jnp.float32)
     pos, quat, lin, ang = (np.asarray(x) for x in fk.frames(qpos, qvel))
     pos_only, quat_only = (np.asarray(x) for x in fk(qpos))
+    geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0]
+    gpos, gmat = (np.asarray(x) for x in fk.geom_frames(qpos, geoms))
     np.testing.assert_array_equal(pos_only, pos)
     np.testing.assert_array_equal(quat_only, quat)
     assert pos.shape == (6, m.nbody - 1, 3) and quat.shape == (6, m.nbody - 1, 4)
@@ -78,12 +80,20 @@ def test_link_poses_and_velocities_match_mujoco(model):
         mujoco.mj_comPos(m, d)
         mujoco.mj_comVel(m, d)
         np.testing.assert_allclose(pos[i], d.xpos[1:], atol=2e-5)
+        np.testing.assert_allclose(gpos[i], d.geom_xpos[geoms], atol=2e-5)
+        np.testing.assert_allclose(gmat[i], d.geom_xmat[geoms].reshape(-1, 3, 3), atol=2e-5)
         sign = np.sign(np.sum(quat[i] * d.xquat[1:], -1, keepdims=True))
         np.testing.assert_allclose(quat[i] * sign, d.xquat[1:], atol=2e-5)
         for b in range(1, m.nbody):
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_XBODY, b, res, 0)  # world frame
             np.testing.assert_allclose(ang[i, b - 1], res[:3], atol=1e-4)
             np.testing.assert_allclose(lin[i, b - 1], res[3:], atol=1e-4)
+
+
+def test_world_geoms_have_no_link_frame():
+    m = mujoco.MjModel.from_xml_string(_ODD.replace("<worldbody>", '<worldbody><geom type="plane" size="1 1 1"/>'))
+    with pytest.raises(ValueError, match="world"):
+        LinkFK(m).geom_frames(jnp.zeros(m.nq), [0])
 
 
 def test_batch_shapes_broadcast():

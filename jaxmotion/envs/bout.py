@@ -26,6 +26,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 from mujoco import mjx
 
@@ -93,7 +94,7 @@ class BoutEnv:
         for k in range(PLAYERS):
             b0, b1 = lay.bodies(k).start, lay.bodies(k).stop
             geoms = [g for g in range(m.ngeom) if b0 <= m.geom_bodyid[g] < b1 and m.geom_type[g] in (2, 3, 6)]
-            self._geoms.append((jnp.asarray(geoms, jnp.int32), jnp.asarray(m.geom_size[geoms], jnp.float32),
+            self._geoms.append((np.asarray(geoms), jnp.asarray(m.geom_size[geoms], jnp.float32),
                                 jnp.asarray(m.geom_type[geoms], jnp.int32)))
         self.task = make_task(cfg.task, self)
         if not getattr(self.task, "two_player", False):
@@ -163,8 +164,7 @@ class BoutEnv:
 
     def lowest_points(self, qpos: jax.Array) -> jax.Array:
         """[2] height of each player's lowest geom point at the scene's ``qpos``."""
-        d = mjx.kinematics(self.model, self._data0.replace(qpos=qpos))
-        return jnp.stack([lowest_point(d, *g) for g in self._geoms])
+        return jnp.stack([lowest_point(*self._fk.geom_frames(qpos, g), size, typ) for g, size, typ in self._geoms])
 
     # ---- observations ------------------------------------------------------------------
     def policy_obs(self, state: BoutState) -> jax.Array:

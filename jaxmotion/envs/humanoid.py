@@ -20,6 +20,7 @@ from typing import Any, Sequence
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 from mujoco import mjx
 
@@ -185,7 +186,7 @@ class HumanoidEnv:
         m = sim.mj_model(cfg.physics)
         self._fk = LinkFK(m)
         geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0 and m.geom_type[g] in (2, 3, 6)]
-        self._body_geoms = jnp.asarray(geoms, jnp.int32)
+        self._body_geoms = np.asarray(geoms)
         self._geom_size = jnp.asarray(m.geom_size[geoms], jnp.float32)
         self._geom_type = jnp.asarray(m.geom_type[geoms], jnp.int32)
         self.task = make_task(cfg.task, self)
@@ -278,8 +279,7 @@ class HumanoidEnv:
 
     def lowest_point(self, qpos: jax.Array) -> jax.Array:
         """Height of the lowest point of the character's spheres, capsules and boxes at ``qpos``."""
-        d = mjx.kinematics(self.model, self._data0.replace(qpos=qpos))
-        return lowest_point(d, self._body_geoms, self._geom_size, self._geom_type)
+        return lowest_point(*self._fk.geom_frames(qpos, self._body_geoms), self._geom_size, self._geom_type)
 
     def poses_of(self, qpos: jax.Array) -> tuple[jax.Array, jax.Array]:
         """Link positions [..., nb, 3] and orientations [..., nb, 4] of generalised positions
@@ -361,10 +361,10 @@ def joint_arrays(ch, allowed_contacts: Sequence[str]) -> tuple[jax.Array, ...]:
             jnp.asarray([b not in allowed for b in range(ch.num_bodies)]))
 
 
-def lowest_point(d: mjx.Data, geoms: jax.Array, size: jax.Array, typ: jax.Array) -> jax.Array:
-    """Height of the lowest point of geoms (spheres, capsules, boxes: ids, sizes, types) in
-    kinematics ``d``."""
-    z, rot = d.geom_xpos[geoms, 2], d.geom_xmat[geoms]
+def lowest_point(xpos: jax.Array, xmat: jax.Array, size: jax.Array, typ: jax.Array) -> jax.Array:
+    """Height of the lowest point of geoms (spheres, capsules, boxes) with world positions
+    ``xpos`` [G, 3], rotations ``xmat`` [G, 3, 3], sizes and types."""
+    z, rot = xpos[:, 2], xmat
     axis_z = jnp.abs(rot[:, 2, :])  # |z component| of each geom axis
     low_sphere = z - size[:, 0]
     low_capsule = z - size[:, 0] - axis_z[:, 2] * size[:, 1]
