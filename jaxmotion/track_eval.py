@@ -12,6 +12,7 @@ a clip the character cannot use is reported under ``errors``, not as a traceback
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from pathlib import Path
 from typing import Sequence
@@ -50,8 +51,22 @@ def track_rollout(learner, ts, env: HumanoidEnv) -> dict[str, np.ndarray]:
     return _rollout_program(learner, env)(ts)
 
 
+@contextlib.contextmanager
+def _following(env: HumanoidEnv, lib: MotionLib):
+    """``env`` reading ``lib`` (a traced argument) as its clips while a program is traced: the scene,
+    its task and the reference all look the clips up in ``env.init_lib`` at trace time."""
+    old, env.init_lib = env.init_lib, lib
+    try:
+        yield
+    finally:
+        env.init_lib = old
+
+
 def _rollout_program(learner, env: HumanoidEnv):
-    """``track_rollout`` compiled for one learner and eval scene: a function of the state only."""
+    """``track_rollout`` compiled for one learner and eval scene: ``program(ts, clips=None)``.
+
+    The clips are an argument of the compiled program (default: the scene's own), so perturbed
+    copies of the same clips (every noise level and seed) reuse one compilation."""
     lib = env.init_lib
     C = lib.num_clips
     dur = np.asarray(lib.clip_duration)
@@ -59,7 +74,11 @@ def _rollout_program(learner, env: HumanoidEnv):
     T = int(frames.max()) - 1
 
     @jax.jit
-    def run(ts):
+    def run(ts, lib):
+        with _following(env, lib):
+            return _run(ts)
+
+    def _run(ts):
         state, obs = jax.vmap(env.reset_at)(jax.random.split(jax.random.PRNGKey(0), C),
                                             jnp.arange(C, dtype=jnp.int32), jnp.zeros(C))
         ref_of = jax.vmap(lambda g: env.task.reference(g, 0.0))
@@ -82,8 +101,8 @@ def _rollout_program(learner, env: HumanoidEnv):
         return (first(state.hist.pos[:, -1], sim), first(ref0.pos, ref), first(alive0, played), failed.any(0),
                 first(state.data.qpos, qpos), first(ref_qpos(state.goal), rq))
 
-    def program(ts):
-        sim, ref, played, failed, qpos, rq = jax.device_get(run(ts))
+    def program(ts, clips: MotionLib | None = None):
+        sim, ref, played, failed, qpos, rq = jax.device_get(run(ts, lib if clips is None else clips))
         return {"sim": sim, "ref": ref, "played": played, "failed": failed, "frames": frames, "qpos": qpos,
                 "ref_qpos": rq}
 
@@ -200,14 +219,14 @@ def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise
         rngs = [np.random.default_rng([seed, i]) for i in range(len(clips))]
         tracked = MotionLib.from_clips([perturb_clip(c, noise, r) for c, r in zip(clips, rngs)]) if noise else clean
     # One compiled program per learner and clip set: evaluating several states (seeds, checkpoints,
-    # hard-negative rounds) compiles once.
+    # hard-negative rounds) and perturbed copies of the clips (noise levels, seeds) compiles once.
     cache = learner.__dict__.setdefault("_track_eval_cache", {})
-    key = (tuple(names), float(noise), int(seed))
+    key = (tuple(names), tuple(np.asarray(tracked.clip_len).tolist()), tuple(np.asarray(tracked.clip_fps).tolist()))
     if key not in cache:
         env = eval_env(learner, tracked)
         cache[key] = (env, _rollout_program(learner, env))
     env, program = cache[key]
-    ro = program(ts)
+    ro = program(ts, tracked)
     if noise:
         ro["ref"] = clean_reference(env, clean, ro["ref"].shape[0] - 1)
         # Failure is judged against the clean clip as well: 0.5 m mean error at any played frame.

@@ -195,9 +195,12 @@ def test_boxing_stuck_and_rope_timers():
     limit = int(np.floor(task.sub.stuck_seconds / dt)) + 1  # > 5 s: the 151st step at 30 Hz
     qv = jnp.zeros((2, env.layout.nv))
     close = _frames(env, [[0.0, 0.0], [0.3, 0.0]])
+    with jit_enabled():  # 2 x 151 steps: compiled once, not dispatched op by op
+        step = jax.jit(lambda g, f, t: task.step(g, f, f, jnp.zeros(2), jnp.zeros(2, bool), qv, qv, t, None))
     g = task.init(None, close)
     for t in range(1, limit + 1):
-        out = task.step(g, close, close, jnp.zeros(2), jnp.zeros(2, bool), qv, qv, jnp.asarray(t), None)
+        with jit_enabled():
+            out = step(g, close, jnp.asarray(t))
         g = out.goal
         assert bool(out.terminated.any()) == (t == limit), t
     np.testing.assert_array_equal(out.terminated, [True, True])  # a clinch penalises both
@@ -206,7 +209,8 @@ def test_boxing_stuck_and_rope_timers():
     roped = _frames(env, [[2.4, 0.0], [0.0, 0.0]])
     g = task.init(None, roped)
     for t in range(1, limit + 1):
-        out = task.step(g, roped, roped, jnp.zeros(2), jnp.zeros(2, bool), qv, qv, jnp.asarray(t), None)
+        with jit_enabled():
+            out = step(g, roped, jnp.asarray(t))
         g = out.goal
     np.testing.assert_array_equal(out.terminated, [True, False])
     free = _frames(env, [[1.0, 0.0], [0.0, 0.0]])
@@ -316,7 +320,8 @@ def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
     learner = _learner()
     assert learner.players == 2 and learner.cfg.samples_per_iteration == 2 * 4 * 2
     with jit_enabled():
-        ts, ts2 = learner.init(jax.random.PRNGKey(0)), learner.init(jax.random.PRNGKey(1))
+        init = jax.jit(learner.init)  # one compile for both seeds, not two eager inits
+        ts, ts2 = init(jax.random.PRNGKey(0)), init(jax.random.PRNGKey(1))
         _, traj = jax.eval_shape(learner.rollout, ts)
         assert traj.obs.shape == (4, 4, learner.env.obs_size) and traj.task_reward.shape == (4, 4, 5)
         new, m = jax.jit(learner.iteration)(ts)

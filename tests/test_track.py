@@ -228,6 +228,8 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
         played, err, res = score(learner, ts)
         noisy, _ = TE.evaluate_clips(learner, ts, clips=clips, noise=1.0)
         _, ro = TE.evaluate_clips(learner, ts)  # the compiled evaluation is cached: cheap
+        # The perturbed copies are an argument of the one compiled evaluation, not a second program.
+        assert len(learner._track_eval_cache) == 1
         page = TE.write_track_html(learner, ro, tmp_path / "track.html").read_text()
         # Hard negatives: the clips an untrained policy fails are counted and sampled more often.
         mined, hard = TE.hard_negative_update(learner, untrained[1], tmp_path)
@@ -288,7 +290,7 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
                       ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4), disc=DiscConfig(minibatch_size=4),
                       hard_negatives_every=1)
     learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
-    ts = learner.init(jax.random.PRNGKey(0))
     with jit_enabled():
+        ts = learner.init(jax.random.PRNGKey(0))  # as train.py does: not compiled as a whole
         jax.jit(lambda s: s, donate_argnums=0)(ts)
     np.testing.assert_allclose(np.asarray(learner.env.init_lib.clip_weight), [1.0])
