@@ -50,7 +50,7 @@ def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
     """(experiment, config, learner, restored state) of a run folder."""
     experiment, cfg = ckpt.read_config(run_dir, TrainConfig)
     learner = Learner(cfg)
-    like = jax.jit(learner.init)(jax.random.PRNGKey(cfg.seed))
+    like = learner.init(jax.random.PRNGKey(cfg.seed))
     mgr = ckpt.manager(run_dir)
     ts, _ = ckpt.restore(mgr, like)
     mgr.close()
@@ -303,7 +303,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     if args.untrained:
-        ts = jax.jit(learner.init)(jax.random.PRNGKey(cfg.seed))
+        ts = learner.init(jax.random.PRNGKey(cfg.seed))
         experiment += " (untrained)"
     if cfg.env.task.name == "track":
         return _main_track(args, experiment, cfg, learner, ts)

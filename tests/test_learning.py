@@ -54,7 +54,7 @@ def test_short_training_beats_untrained_policies():
 
         # The reward one fixed discriminator (the final one) gives each policy's transitions, from
         # the same fresh resets, over whole episodes (a fall keeps its -1 until the reset).
-        fresh = jax.jit(learner.init)(jax.random.PRNGKey(123))
+        fresh = learner.init(jax.random.PRNGKey(123))
 
         @jax.jit
         def disc_reward(policy_state):

@@ -36,7 +36,7 @@ def meta_run(tmp_path_factory, data_dir):
     cfg = _cfg("location", (GroupConfig(name="full", motions=WALK),))
     with jit_enabled():
         learner = Learner(cfg)
-        ts = jax.jit(learner.init)(jax.random.PRNGKey(7))
+        ts = learner.init(jax.random.PRNGKey(7))
     # A policy whose actions are far from zero, so that "follows the meta policy" is visible.
     mean = ts.policy_params["params"]["mean"]
     params = {"params": {**ts.policy_params["params"], "mean": {**mean, "kernel": 20.0 * mean["kernel"]}}}
@@ -54,7 +54,7 @@ def incremental(meta_run):
                meta=str(meta_run.parent))  # a folder of runs: its newest is taken
     with jit_enabled():
         learner = Learner(cfg)
-        ts = jax.jit(learner.init)(jax.random.PRNGKey(0))
+        ts = learner.init(jax.random.PRNGKey(0))
     return learner, ts
 
 

@@ -34,7 +34,7 @@ def _learner(task: str) -> Learner:
 def aim_player():
     learner = _learner("aim+location")
     with jit_enabled():
-        a, b = (jax.jit(learner.init)(jax.random.PRNGKey(s)) for s in (0, 1))
+        a, b = (learner.init(jax.random.PRNGKey(s)) for s in (0, 1))
         yield play.Player(learner, [a, b], seed=0)
 
 

@@ -28,7 +28,7 @@ def test_switching_keeps_the_env_state_and_changes_only_the_policy():
     learner = _learner()
     steps, every = 6, 2
     with jit_enabled():
-        a, b = (jax.jit(learner.init)(jax.random.PRNGKey(s)) for s in (0, 1))
+        a, b = (learner.init(jax.random.PRNGKey(s)) for s in (0, 1))
         ro = E.rollout(learner, (a, b), episodes=2, steps=steps, switch_steps=every)
         # The same by hand on one env batch: A acts for 2 steps, then B for 2, then A again.
         reset, step = jax.jit(jax.vmap(learner.env.reset)), jax.jit(jax.vmap(learner.env.step))

@@ -291,6 +291,6 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
                       hard_negatives_every=1)
     learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
     with jit_enabled():
-        ts = learner.init(jax.random.PRNGKey(0))  # as train.py does: not compiled as a whole
+        ts = learner.init(jax.random.PRNGKey(0))  # as train.py does
         jax.jit(lambda s: s, donate_argnums=0)(ts)
     np.testing.assert_allclose(np.asarray(learner.env.init_lib.clip_weight), [1.0])
