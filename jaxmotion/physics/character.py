@@ -166,8 +166,8 @@ def build_mjcf(sword_shield: bool = False, floor: bool = True) -> str:
         f'<mujoco model="jaxmotion_humanoid{"_sword_shield" if sword_shield else ""}">',
         '  <compiler angle="degree"/>',
         # Solver settings are set again in physics/sim.py; these make MuJoCo C match MJX.
-        '  <option timestep="0.008333333333333333" integrator="implicitfast" iterations="4" '
-        'ls_iterations="8" solver="Newton">',
+        '  <option timestep="0.008333333333333333" integrator="implicitfast" iterations="16" '
+        'ls_iterations="16" solver="Newton">',
         '    <flag eulerdamp="disable"/>',
         '  </option>',
         '  <visual><global offwidth="1280" offheight="720"/></visual>',
