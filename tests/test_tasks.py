@@ -281,7 +281,7 @@ def test_short_location_training_beats_untrained_policies():
     from jaxmotion import eval as E
     from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
 
-    iters, chunk, seeds = 240, 40, 3
+    iters, chunk, seeds = 320, 40, 3
     stand = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])
     # Targets 1-2 m away, ahead within ±60 degrees; no fall termination, so getting closer (by a
     # step, a lean or a fall) is what the reward pays for. The discriminator's weight is small.
@@ -307,11 +307,17 @@ def test_short_location_training_beats_untrained_policies():
         base = np.array([final_distance(learner, u)[0] for u in untrained])
         ts = jax.tree.map(lambda x: x.copy(), untrained[0])  # the chunk donates its input
         run = make_train_chunk(learner, mesh, chunk, ts)
-        for _ in range(iters // chunk):
+        last = []  # the policies after each of the last three chunks (their mean is judged)
+        for i in range(iters // chunk):
             ts, _ = run(ts)
-        trained, summary = final_distance(learner, ts)
-    print(f"final distance to the target: untrained {base}, trained {trained:.3f}; {summary}")
-    # Measured: untrained 1.26-1.57 m (their random falls scatter), trained 1.08 m. Below the
-    # best untrained seed by 0.1 m, a margin none of the untrained seeds has over another's best.
+            if i >= iters // chunk - 3:
+                last.append(final_distance(learner, ts))
+        trained, summary = float(np.mean([d for d, _ in last])), last[-1][1]
+    print(f"final distance to the target: untrained {base}, trained {[round(d, 3) for d, _ in last]}; {summary}")
+    # Measured: untrained 1.26-1.57 m (their random falls scatter), trained 1.08 m after 240
+    # iterations; with the 16-iteration contact solver untrained 1.20-1.73 m and 1.022 m at 240, a
+    # margin of 0.08 m over the bar. Now 320 iterations and the last three chunks' policies
+    # averaged: 1.022 / 0.768 / 0.811 m. Below the best untrained seed by 0.1 m, a margin none of
+    # the untrained seeds has over another's best.
     assert trained < base.min() - 0.1
     assert summary["name"] == "location" and "mean_distance_m" in summary
