@@ -222,6 +222,11 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
         mw, sw = M.mean_std(errs_w) if errs_w else (float("nan"), float("nan"))
         groups[gcfg.name] = {"dtw_error_m_mean": m, "dtw_error_m_std": s,
                              "dtw_error_world_m_mean": mw, "dtw_error_world_m_std": sw}
+        played = [ro["pos"][:int(n), e, 0, 2] for e, n in enumerate(lengths) if n >= 1]
+        if int(anchor) < 0 and played:
+            # Heading-frame groups drive the root: its height against the reference's shows a
+            # held pose that DTW pairs with part of a cyclic clip.
+            groups[gcfg.name]["root_height_m"] = M.height_stats(played, ref_pos[:int(lengths.max()), 0, 2])
     task = learner.env.task
     summary = {"name": learner.cfg.env.task.name, **task.summary(ro["info"], ro["stepped"])}
     for k, name in enumerate(task.reward_names):
@@ -335,6 +340,11 @@ def main(argv: list[str] | None = None) -> int:
     for name, g in res["groups"].items():
         print(f"  {name:>8}: DTW error {g['dtw_error_m_mean']:.3f} ± {g['dtw_error_m_std']:.3f} m (group frame), "
               f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)")
+        if "root_height_m" in g:
+            h = g["root_height_m"]
+            print(f"  {'':>8}  root height {h['sim_mean']:.2f} ± {h['sim_std']:.2f} m ({h['sim_min']:.2f}-"
+                  f"{h['sim_max']:.2f}), reference {h['ref_mean']:.2f} ± {h['ref_std']:.2f} m "
+                  f"({h['ref_min']:.2f}-{h['ref_max']:.2f})")
     if ro["meta_w"].shape[-1]:
         res["meta_weights"] = meta_weight_summary(learner, ro)
         mw = res["meta_weights"]

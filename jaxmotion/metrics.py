@@ -139,6 +139,26 @@ def mean_std(xs: Iterable[float]) -> tuple[float, float]:
     return float(arr.mean()), float(arr.std())
 
 
+def height_stats(sim_z: Iterable[np.ndarray], ref_z: np.ndarray) -> dict[str, float]:
+    """Mean, std and range (m) of a link's height over the simulated episodes' frames (pooled)
+    and over the reference's. DTW may pair many frames of a held pose with one part of a cyclic
+    reference (a half-squat held against a squat scores low); the height's spread shows that.
+
+    Args:
+      sim_z: per episode, the link's heights [T_e] over the frames it played.
+      ref_z: [T] the reference link's heights.
+    """
+    sim = np.concatenate([np.asarray(z, np.float64).reshape(-1) for z in sim_z])
+    ref = np.asarray(ref_z, np.float64).reshape(-1)
+    if sim.size == 0 or ref.size == 0:
+        raise ValueError("height_stats needs at least one simulated and one reference frame")
+    out = {}
+    for name, z in (("sim", sim), ("ref", ref)):
+        out.update({f"{name}_mean": float(z.mean()), f"{name}_std": float(z.std()),
+                    f"{name}_min": float(z.min()), f"{name}_max": float(z.max())})
+    return out
+
+
 def _check_cost(cost: np.ndarray) -> np.ndarray:
     cost = np.asarray(cost, dtype=np.float64)
     if cost.ndim != 2 or cost.shape[0] == 0 or cost.shape[1] == 0:

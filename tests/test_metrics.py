@@ -143,3 +143,15 @@ def test_mean_std():
     assert metrics.mean_std(np.array([2.0])) == (2.0, 0.0)
     with pytest.raises(ValueError):
         metrics.mean_std([])
+
+
+def test_height_stats_pool_episodes_and_show_a_held_pose():
+    """By hand: a held 0.4 m against a reference cycling 0.2 <-> 0.8 m."""
+    ref = np.array([0.2, 0.5, 0.8, 0.5])
+    h = metrics.height_stats([np.full(3, 0.4), np.array([0.4])], ref)
+    assert h["sim_mean"] == pytest.approx(0.4) and h["sim_std"] == pytest.approx(0.0, abs=1e-12)
+    assert (h["sim_min"], h["sim_max"]) == (pytest.approx(0.4), pytest.approx(0.4))
+    assert h["ref_mean"] == pytest.approx(0.5) and h["ref_std"] == pytest.approx(np.sqrt(0.045))
+    assert (h["ref_min"], h["ref_max"]) == (pytest.approx(0.2), pytest.approx(0.8))
+    with pytest.raises(ValueError):
+        metrics.height_stats([np.zeros(0)], ref)
