@@ -222,10 +222,10 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
         mw, sw = M.mean_std(errs_w) if errs_w else (float("nan"), float("nan"))
         groups[gcfg.name] = {"dtw_error_m_mean": m, "dtw_error_m_std": s,
                              "dtw_error_world_m_mean": mw, "dtw_error_world_m_std": sw}
-        played = [ro["pos"][:int(n), e, 0, 2] for e, n in enumerate(lengths) if n >= 1]
-        if int(anchor) < 0 and played:
+        if int(anchor) < 0:
             # Heading-frame groups drive the root: its height against the reference's shows a
             # held pose that DTW pairs with part of a cyclic clip.
+            played = [ro["pos"][:int(n), e, 0, 2] for e, n in enumerate(lengths)]
             groups[gcfg.name]["root_height_m"] = M.height_stats(played, ref_pos[:int(lengths.max()), 0, 2])
     task = learner.env.task
     summary = {"name": learner.cfg.env.task.name, **task.summary(ro["info"], ro["stepped"])}

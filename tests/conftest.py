@@ -15,6 +15,18 @@ DATA = (Path(os.environ["JAXMOTION_DATA"]) if os.environ.get("JAXMOTION_DATA")
         else REPO.parent / "shared" / "motions")
 
 
+def train_scoring_last(run, ts, chunks: int, score, last: int = 3):
+    """Runs ``chunks`` compiled training chunks (``run(ts) -> (ts, metrics)``) and scores the
+    policy after each of the last ``last``: ``(ts, [score(ts), ...])``. A short RL run is chaotic
+    from chunk to chunk, so the learning tests judge these scores' mean, not one snapshot."""
+    scores = []
+    for i in range(chunks):
+        ts, _ = run(ts)
+        if i >= chunks - last:
+            scores.append(score(ts))
+    return ts, scores
+
+
 @contextlib.contextmanager
 def jit_enabled():
     """Compile inside this block even under JAX_DISABLE_JIT=1."""

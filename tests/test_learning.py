@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from conftest import jit_enabled
+from conftest import jit_enabled, train_scoring_last
 from jaxmotion import eval as E
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
@@ -48,11 +48,7 @@ def test_short_training_beats_untrained_policies():
         ts = untrained[0]
         ts = jax.tree.map(lambda x: x.copy(), ts)  # the chunk donates its input
         chunk = make_train_chunk(learner, mesh, CHUNK, ts)
-        last = []  # the policies after each of the last three chunks, evaluated (their mean is judged)
-        for i in range(ITERS // CHUNK):
-            ts, _ = chunk(ts)
-            if i >= ITERS // CHUNK - 3:
-                last.append(E.evaluate(learner, ts, episodes=4))
+        ts, last = train_scoring_last(chunk, ts, ITERS // CHUNK, lambda t: E.evaluate(learner, t, episodes=4))
 
         # The reward one fixed discriminator (the final one) gives each policy's transitions, from
         # the same fresh resets, over whole episodes (a fall keeps its -1 until the reset).

@@ -277,7 +277,7 @@ def test_unknown_task_is_a_clear_error():
 def test_short_location_training_beats_untrained_policies():
     """A policy trained for a few CPU minutes on target location must end its episodes nearer
     the targets than untrained policies do, by more than the spread of untrained seeds."""
-    from conftest import jit_enabled
+    from conftest import jit_enabled, train_scoring_last
     from jaxmotion import eval as E
     from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
 
@@ -307,11 +307,7 @@ def test_short_location_training_beats_untrained_policies():
         base = np.array([final_distance(learner, u)[0] for u in untrained])
         ts = jax.tree.map(lambda x: x.copy(), untrained[0])  # the chunk donates its input
         run = make_train_chunk(learner, mesh, chunk, ts)
-        last = []  # the policies after each of the last three chunks (their mean is judged)
-        for i in range(iters // chunk):
-            ts, _ = run(ts)
-            if i >= iters // chunk - 3:
-                last.append(final_distance(learner, ts))
+        ts, last = train_scoring_last(run, ts, iters // chunk, lambda t: final_distance(learner, t))
         trained, summary = float(np.mean([d for d, _ in last])), last[-1][1]
     print(f"final distance to the target: untrained {base}, trained {[round(d, 3) for d, _ in last]}; {summary}")
     # Measured: untrained 1.26-1.57 m (their random falls scatter), trained 1.08 m after 240

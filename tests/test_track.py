@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from conftest import jit_enabled
+from conftest import jit_enabled, train_scoring_last
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.tasks import TaskConfig, TrackConfig
@@ -228,11 +228,7 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
         base = [score(learner, u) for u in untrained]
         ts = jax.tree.map(lambda x: x.copy(), untrained[0])
         run = make_train_chunk(learner, mesh, chunk, ts)
-        last = []  # the policies after each of the last three chunks, scored and averaged
-        for i in range(iters // chunk):
-            ts, _ = run(ts)
-            if i >= iters // chunk - 3:
-                last.append(score(learner, ts))
+        ts, last = train_scoring_last(run, ts, iters // chunk, lambda t: score(learner, t))
         played, err, res = float(np.mean([p for p, _, _ in last])), float(np.mean([e for _, e, _ in last])), last[-1][2]
         noisy, _ = TE.evaluate_clips(learner, ts, clips=clips, noise=1.0)
         _, ro = TE.evaluate_clips(learner, ts)  # the compiled evaluation is cached: cheap
