@@ -510,3 +510,29 @@ def test_cli_reports_bad_file_and_writes_json(tmp_path):
     assert set(row) == {"path", "format", "frames", "fps", "duration_s",
                                        "root_speed_mps", "fk_error_m"}
     assert len(report["errors"]) == 1 and "malformed JSON" in report["errors"][0]["error"]
+
+
+# ----------------------------------------------------------------------------- frame ranges
+
+def test_frame_ranges_parse_and_join_without_a_jump(tmp_path):
+    from jaxmotion.motion.clip import select_frames
+    from jaxmotion.motion.loaders import load_clips, split_frame_ranges
+    assert split_frame_ranges("a/squat.json[0:28, 56:]") == ("a/squat.json", ((0, 28), (56, None)))
+    assert split_frame_ranges("C:/x[1].json") == ("C:/x[1].json", None)
+    # A root walking at 1 m/s along x (30 fps): frames 0-4, then 20-29 carried on from frame 4.
+    clip = make_test_clip(30, root_vel=(1.0, 0.0, 0.0))
+    part = select_frames(clip, ((0, 5), (20, None)))
+    assert part.num_frames == 15 and not part.loop and part.name == "test[0:5,20:]"
+    np.testing.assert_allclose(part.root_pos[:5], clip.root_pos[:5])
+    np.testing.assert_allclose(part.root_pos[:, 0], np.arange(15) / 30, atol=1e-12)
+    np.testing.assert_allclose(part.root_lin_vel[:, 0], 1.0, atol=1e-9)
+    with pytest.raises(ValueError, match="not within"):
+        select_frames(clip, ((25, 31),))
+    with pytest.raises(ValueError, match="at least 2"):
+        select_frames(clip, ((3, 4),))
+    # Through the loader, as an experiment names it; a bad range is a MotionFileError.
+    path = _write_json(tmp_path / "walk.json", {"fps": 30, "frames": _composite_frames(6)})
+    c, = load_clips([f"{path}[1:4]"])
+    np.testing.assert_allclose(c.root_pos[:, 0], [0.01, 0.02, 0.03], atol=1e-6)
+    with pytest.raises(MotionFileError, match="not within"):
+        load_clips([f"{path}[0:9]"])

@@ -7,6 +7,7 @@ model) and finite-difference velocities, all computed once by ``build_clip``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import dataclasses
 import functools
 
@@ -196,6 +197,42 @@ def build_clip(*, name: str, path: str, format: str, fps: float, loop: bool, swo
         dof_vel=finite_diff(np.unwrap(dof_pos, axis=0), dt), body_pos=body_pos,
         body_quat=body_quat, body_lin_vel=body_lin_vel, body_ang_vel=body_ang_vel,
         fk_error_m=float(fk_error_m))
+
+
+def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
+    """The frames of ``ranges`` (Python slices ``[start, stop)`` of frame indices, ``stop`` None =
+    to the end), joined in order into one clip that does not loop.
+
+    Each later range's root is shifted horizontally (xy only, no turn) to carry on from where the
+    previous one ended, at its last horizontal step, and the velocities are recomputed across the seams, so join ranges whose
+    poses match there (e.g. the two lowest points of a squat, cutting out a bounce between them).
+    For parts that do not meet, list the file twice with one range each: two clips.
+
+    Raises:
+        ValueError: a range outside the clip, an empty range, or fewer than 2 frames in all.
+    """
+    n = clip.num_frames
+    parts = []
+    for start, stop in ranges:
+        stop = n if stop is None else stop
+        if not 0 <= start < stop <= n:
+            raise ValueError(f"frames [{start}:{stop}] are not within the clip's {n} frames")
+        parts.append(np.arange(start, stop))
+    root = [clip.root_pos[parts[0]]]
+    for idx in parts[1:]:
+        seg = clip.root_pos[idx].copy()
+        prev = root[-1]
+        step = prev[-1, :2] - prev[-2, :2] if len(prev) > 1 else 0.0
+        seg[:, :2] += prev[-1, :2] + step - seg[0, :2]
+        root.append(seg)
+    idx = np.concatenate(parts)
+    if idx.size < 2:
+        raise ValueError(f"frames {list(ranges)} select {idx.size} frame; a clip needs at least 2")
+    spec = ",".join(f"{a}:{'' if b is None else b}" for a, b in ranges)
+    return build_clip(name=f"{clip.name}[{spec}]", path=clip.path, format=clip.format, fps=clip.fps,
+                      loop=False, sword_shield=clip.sword_shield, root_pos=np.concatenate(root),
+                      root_quat=clip.root_quat[idx], dof_pos=clip.dof_pos[idx],
+                      fk_error_m=clip.fk_error_m)
 
 
 def make_test_clip(num_frames: int = 31, fps: float = 30.0, *, root_vel=(1.0, 0.0, 0.0),

@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 from pathlib import Path
 from typing import Iterable
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from jaxmotion.data import resolve
 from jaxmotion.motion import rotations as rot
-from jaxmotion.motion.clip import Clip, build_clip
+from jaxmotion.motion.clip import Clip, build_clip, select_frames
 from jaxmotion.motion.convert import local_quats_to_dof, reference_body_pos
 from jaxmotion.physics.character import Character
 from jaxmotion.physics.character import character as _character
@@ -403,7 +404,39 @@ def find_motion_files(paths: str | os.PathLike | Iterable[str | os.PathLike]) ->
     return out
 
 
+_FRAMES = re.compile(r"^(?P<path>.+)\[(?P<ranges>\s*\d*\s*:\s*\d*\s*(?:,\s*\d*\s*:\s*\d*\s*)*)\]$")
+
+
+def split_frame_ranges(spec: str | os.PathLike) -> tuple[str | os.PathLike, tuple[tuple[int, int | None], ...] | None]:
+    """``"squat.json[0:33,58:]"`` -> ``("squat.json", ((0, 33), (58, None)))``; no brackets -> None."""
+    m = _FRAMES.match(str(spec))
+    if m is None:
+        return spec, None
+    ranges = []
+    for part in m["ranges"].split(","):
+        a, b = (x.strip() for x in part.split(":"))
+        ranges.append((int(a) if a else 0, int(b) if b else None))
+    return m["path"], tuple(ranges)
+
+
 def load_clips(paths: str | os.PathLike | Iterable[str | os.PathLike],
                character: Character | None = None) -> list[Clip]:
-    """Loads files and folders (recursively, sorted) of motion files; see ``load_clip``."""
-    return [load_clip(p, character) for p in find_motion_files(paths)]
+    """Loads files and folders (recursively, sorted) of motion files; see ``load_clip``.
+
+    A file may name frame ranges, ``path[start:stop,...]`` (frame indices, Python slices): only
+    those frames, joined into one clip (``clip.select_frames``), e.g. a squat without its bounce.
+    """
+    if isinstance(paths, (str, os.PathLike)):
+        paths = [paths]
+    out = []
+    for item in paths:
+        path, ranges = split_frame_ranges(item)
+        if ranges is None:
+            out += [load_clip(p, character) for p in find_motion_files([item])]
+            continue
+        clip = load_clip(path, character)
+        try:
+            out.append(select_frames(clip, ranges))
+        except ValueError as e:
+            raise MotionFileError(resolve(path), str(e)) from None
+    return out
