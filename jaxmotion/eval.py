@@ -19,6 +19,11 @@ pelvis):
 
 The reference sequence of a group is its first clip, repeated to cover the episode.
 
+``coverage`` is the other direction: for each frame of one pass of that clip, the distance (group
+frame) to the nearest frame any episode played after its first 2 s (``COVERAGE_SKIP_S``),
+averaged (``error_m``), and the share within 0.1 m (``within``). DTW forgives a policy that repeats one part of the clip (the bottom of a
+squat, held); coverage does not.
+
 The task's metrics (``Task.summary``: e.g. the location success rate) come under ``"task"``. With
 ``--switch RUN2 [...] --switch-every S`` the policies of several runs that share observation and
 action spaces take turns every S seconds on the same environments (paper Fig. 9), and
@@ -199,29 +204,46 @@ def reference_sequence(learner: Learner, group: int, num_frames: int) -> tuple[n
     return np.asarray(ms.body_pos), np.asarray(ms.body_quat)
 
 
+COVERAGE_SKIP_S = 2.0
+"""Coverage ignores each episode's first seconds: started from a reference state, a policy plays
+the reference on for a while before it settles into what it does (measured: a policy that stood
+still from 2 s on covered all of the squat's frames counting its first second)."""
+
+
 def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
     """The metrics dict (see the module docstring) of a ``rollout``'s episodes."""
     episodes = ro["alive"].shape[1]
     lengths = ro["alive"].sum(0)  # frames including the initial one
+    skip = int(round(COVERAGE_SKIP_S / learner.env.dt))
     groups = {}
     for g, (gcfg, (links, anchor)) in enumerate(zip(learner.cfg.env.groups, learner.env.group_idx)):
         # One reference for every episode: a shorter one is a prefix of the longest.
         ref_pos, ref_quat = reference_sequence(learner, g, max(int(lengths.max()), 1))
-        errs, errs_w = [], []
+        errs, errs_w, shown = [], [], []
         for e in range(episodes):
             n = int(lengths[e])
             if n < 2:
                 continue
             sp, sq = ro["pos"][:n, e], ro["quat"][:n, e]
             rp, rq = ref_pos[:n], ref_quat[:n]
-            errs.append(M.dtw_imitation_error(group_frame_positions(sp, sq, links, int(anchor)),
-                                              group_frame_positions(rp, rq, links, int(anchor)))[0])
+            gp = group_frame_positions(sp, sq, links, int(anchor))
+            errs.append(M.dtw_imitation_error(gp, group_frame_positions(rp, rq, links, int(anchor)))[0])
+            if n > skip:
+                shown.append(gp[skip:])
             rw = world_aligned(rp, rq, sp[0], sq[0])
             errs_w.append(M.dtw_imitation_error(sp[:, links], rw[:, links])[0])
         m, s = M.mean_std(errs) if errs else (float("nan"), float("nan"))
         mw, sw = M.mean_std(errs_w) if errs_w else (float("nan"), float("nan"))
         groups[gcfg.name] = {"dtw_error_m_mean": m, "dtw_error_m_std": s,
                              "dtw_error_world_m_mean": mw, "dtw_error_world_m_std": sw}
+        if shown:
+            # One pass of the clip against every frame played: the share of the reference shown.
+            n_clip = max(int(round(float(learner.env.motion_libs[g].clip_duration[0]) / learner.env.dt)), 1)
+            one = ref_pos[:n_clip], ref_quat[:n_clip]
+            if n_clip > ref_pos.shape[0]:
+                one = reference_sequence(learner, g, n_clip)
+            groups[gcfg.name]["coverage"] = M.coverage(
+                np.concatenate(shown, 0), group_frame_positions(*one, links, int(anchor)))
         if int(anchor) < 0:
             # Heading-frame groups drive the root: its height against the reference's shows a
             # held pose that DTW pairs with part of a cyclic clip.
@@ -340,6 +362,10 @@ def main(argv: list[str] | None = None) -> int:
     for name, g in res["groups"].items():
         print(f"  {name:>8}: DTW error {g['dtw_error_m_mean']:.3f} ± {g['dtw_error_m_std']:.3f} m (group frame), "
               f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)")
+        if "coverage" in g:
+            c = g["coverage"]
+            print(f"  {'':>8}  reference shown: {c['within']:.0%} of its frames within {c['radius_m']:.2f} m of a "
+                  f"simulated frame, nearest {c['error_m']:.3f} m on average")
         if "root_height_m" in g:
             h = g["root_height_m"]
             print(f"  {'':>8}  root height {h['sim_mean']:.2f} ± {h['sim_std']:.2f} m ({h['sim_min']:.2f}-"

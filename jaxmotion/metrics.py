@@ -159,6 +159,26 @@ def height_stats(sim_z: Iterable[np.ndarray], ref_z: np.ndarray) -> dict[str, fl
     return out
 
 
+def coverage(sim_pos: np.ndarray, ref_pos: np.ndarray, radius: float = 0.1) -> dict[str, float]:
+    """How much of the reference the simulation shows: for every reference frame, the Eq. 11
+    distance to the nearest simulated frame (any episode, any time). DTW measures the other
+    direction (every simulated frame near some reference frame), which a policy that repeats
+    one part of the clip passes; this one it fails (the recall to DTW's precision).
+
+    Args:
+      sim_pos: [N, L, 3] simulated link positions, frames of all episodes pooled.
+      ref_pos: [T, L, 3] reference link positions (e.g. one pass of the clip), same links.
+      radius: the distance (m) within which a reference frame counts as shown.
+
+    Returns:
+      ``{"error_m": mean nearest distance, "within": share of reference frames within radius,
+      "radius_m": radius}``.
+    """
+    nearest = link_distance_cost(sim_pos, ref_pos).min(axis=0)
+    return {"error_m": float(nearest.mean()), "within": float(np.mean(nearest <= radius)),
+            "radius_m": float(radius)}
+
+
 def _check_cost(cost: np.ndarray) -> np.ndarray:
     cost = np.asarray(cost, dtype=np.float64)
     if cost.ndim != 2 or cost.shape[0] == 0 or cost.shape[1] == 0:

@@ -59,7 +59,7 @@ def _trim_metrics(path: Path, upto: int) -> None:
 
 
 def _log_eval(learner: Learner, ts: TrainState, cfg: TrainConfig, path: Path, last: dict, writer) -> None:
-    """Appends one evaluation row (DTW error per group, episode length, fall rate) to the log."""
+    """Appends one evaluation row (DTW error and coverage per group, episode length, fall rate) to the log."""
     from jaxmotion import eval as E  # eval imports this module's neighbours; keep startup light
 
     res = E.evaluate(learner, ts, cfg.eval_episodes)
@@ -68,6 +68,9 @@ def _log_eval(learner: Learner, ts: TrainState, cfg: TrainConfig, path: Path, la
     for g, m in res["groups"].items():
         row[f"eval/{g}/dtw_error_m"] = m["dtw_error_m_mean"]
         row[f"eval/{g}/dtw_error_world_m"] = m["dtw_error_world_m_mean"]
+        if "coverage" in m:
+            row[f"eval/{g}/coverage_m"] = m["coverage"]["error_m"]
+            row[f"eval/{g}/coverage_within"] = m["coverage"]["within"]
     for k, v in res["task"].items():
         if isinstance(v, (int, float)):
             row[f"eval/task/{k}"] = v

@@ -155,3 +155,17 @@ def test_height_stats_pool_episodes_and_show_a_held_pose():
     assert (h["ref_min"], h["ref_max"]) == (pytest.approx(0.2), pytest.approx(0.8))
     with pytest.raises(ValueError):
         metrics.height_stats([np.zeros(0)], ref)
+
+
+def test_coverage_fails_a_held_pose_that_dtw_passes():
+    """By hand, one link moving along z: the reference cycles 0.2 -> 0.8 m, one policy holds
+    the bottom, another plays the whole cycle. DTW scores the hold better than its coverage."""
+    ref = np.array([0.2, 0.35, 0.5, 0.65, 0.8])[:, None, None] * np.array([0.0, 0.0, 1.0])
+    held = np.full((10, 1, 3), [0.0, 0.0, 0.2])
+    cov = metrics.coverage(held, ref, radius=0.1)
+    # Nearest simulated frame of each reference frame: 0, 0.15, 0.3, 0.45, 0.6 m away.
+    assert cov["error_m"] == pytest.approx(0.3)
+    assert cov["within"] == pytest.approx(0.2) and cov["radius_m"] == 0.1
+    assert metrics.dtw_imitation_error(held, ref)[0] < cov["error_m"]
+    full = metrics.coverage(np.concatenate([ref, ref[::-1]]), ref)
+    assert full["error_m"] == pytest.approx(0.0, abs=1e-12) and full["within"] == 1.0
