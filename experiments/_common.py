@@ -11,6 +11,11 @@ WALK = (
     "compositemotion/locomotion/lafan1_walk1_subject5_80_1715.json",
 )
 GYM = "compositemotion/gym/"
+# One squat: the shared clip (2.83 s) bounces at the bottom between two squats' lowest points
+# (frames 32-58); a policy sees the same state rising from either and may loop the bounce for
+# ever. Frames 0-27 and 56-84 join seamlessly (6 mm, 0.12 m/s apart) into one 1.87-s squat
+# (the paper's is 1.67 s).
+SQUAT = GYM + "squat.json[0:28,56:]"
 
 
 def composite(upper: tuple[str, ...], lower: tuple[str, ...], weights=(0.5, 0.5),

@@ -3,8 +3,8 @@
 The authors' config uses ω = 0.5/0.5 and caps training at 10k iterations (41M samples); the paper
 reports its errors after about 20M samples. 5000 iterations here = 20.5M samples.
 """
-from _common import GYM, composite
+from _common import GYM, SQUAT, composite
 
 
 def config():
-    return composite((GYM + "chest_open+walk_in_place.json",), (GYM + "squat.json",))
+    return composite((GYM + "chest_open+walk_in_place.json",), (SQUAT,))
