@@ -48,7 +48,12 @@ class NetConfig:
     state_dependent_std: bool = True
     init_log_std: float = -3.0
     """Initial log σ of the Gaussian policy (the paper's code starts at -3)."""
+    critic_hidden_init: float = 0.0
+    """0: the critic's hidden weights start at PyTorch's default U(+-1/sqrt(fan_in)), like the
+    policy's; > 0: at U(+-critic_hidden_init) (the authors' code: 1e-4, as its heads)."""
     disc_hidden: tuple[int, ...] = (256, 128)
+    disc_hidden_gain: float = 1.0
+    """Orthogonal gain of the discriminators' hidden layers (the authors' code: sqrt(2))."""
     disc_heads: int = 32
     """Heads per discriminator ensemble (N in the paper)."""
     meta_weight_bias: float = 3.0
@@ -259,8 +264,10 @@ class Learner:
             state_dependent_std=nc.state_dependent_std, init_log_std=nc.init_log_std,
             meta_size=self.env.action_size if self.meta else 0, meta_weight_bias=nc.meta_weight_bias)
         self.critic = nets.make_critic_network(
-            self.env.obs_size, self.num_objectives, hidden_sizes=nc.critic_hidden, activation=nc.activation)
-        self.discs = tuple(nets.make_discriminator_network(d, nc.disc_heads, hidden_sizes=nc.disc_hidden)
+            self.env.obs_size, self.num_objectives, hidden_sizes=nc.critic_hidden, activation=nc.activation,
+            hidden_init_scale=nc.critic_hidden_init)
+        self.discs = tuple(nets.make_discriminator_network(d, nc.disc_heads, hidden_sizes=nc.disc_hidden,
+                                                           hidden_gain=nc.disc_hidden_gain)
                            for d in self.env.disc_obs_sizes())
         pc = cfg.ppo
         self.optimizer = optax.chain(

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import jit_enabled
 from jaxmotion.envs import observations as O
-from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
+from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv, fall_contacts
 from jaxmotion.motion import MotionLib, make_test_clip, qpos_qvel, sample
 from jaxmotion.physics import backends, sim
 from jaxmotion.physics.character import build_mjcf
@@ -45,14 +45,14 @@ def fns(env):
     return reset, step, frames
 
 
-def _zero_gain_env(env):
-    """The same env on a physics backend whose servo has no gains."""
+def _zero_gain_env(env, cfg=None):
+    """The same env (or config ``cfg``) on a physics backend whose servo has no gains."""
     m = sim.mj_model(env.cfg.physics)
     m.actuator_gainprm[:, 0] = 0
     m.actuator_biasprm[:, 1:3] = 0
     phys = backends.make_physics(env.cfg.physics.backend, m, build_mjcf(False), sim.mjx.put_model(m),
                                  env.cfg.physics.substeps)
-    return HumanoidEnv(env.cfg, motion_libs=env.motion_libs, init_lib=env.init_lib, physics=phys)
+    return HumanoidEnv(cfg or env.cfg, motion_libs=env.motion_libs, init_lib=env.init_lib, physics=phys)
 
 
 def _run(fns, env, key, actions):
@@ -85,6 +85,30 @@ def test_standing_holds_for_2s_and_zero_gains_fall(env, fns):
     fell = jnp.stack([o.terminated for o in outs])
     assert bool(fell.any(0).all()), "without gains every character should fall and terminate"
     assert not bool(jnp.stack([o.unstable for o in outs]).any())
+
+
+def test_fall_rule_with_a_height():
+    """By hand: a hand (body 1) and a foot (body 2, allowed) on the ground, the hand's origin at
+    0.10 m: a fall by the default rule and under 0.15 m, not under 0.05 m (the authors' rule)."""
+    ground = jnp.array([False, True, True])
+    bad = jnp.array([True, True, False])
+    z = jnp.array([0.9, 0.10, 0.05])
+    assert fall_contacts(ground, bad, z, 0.0).tolist() == [False, True, False]
+    assert fall_contacts(ground, bad, z, 0.15).tolist() == [False, True, False]
+    assert fall_contacts(ground, bad, z, 0.05).tolist() == [False, False, False]
+
+
+def test_a_collapse_touching_with_links_up_is_no_fall_under_a_low_fall_height(env):
+    """No servo: the character collapses and its knees, hands or pelvis touch the floor, but body
+    origins (joints) stay above 1 mm, so with ``fall_height`` 1 mm the episode goes on."""
+    import dataclasses
+    zero = _zero_gain_env(env, dataclasses.replace(env.cfg, fall_height=1e-3))
+    with jit_enabled():
+        zfns = (jax.jit(jax.vmap(zero.reset)), jax.jit(jax.vmap(zero.step)), None)
+    hold = jnp.broadcast_to(env.action_for_target(jnp.zeros(28)), (60, B, 28))
+    _, _, outs, z = _run(zfns, zero, jax.random.PRNGKey(0), hold)
+    assert float(z[-1].max()) < 0.4, "the character should have collapsed"
+    assert not bool(jnp.stack([o.terminated for o in outs]).any())
 
 
 def test_time_limit_truncates_and_resets(env, fns):

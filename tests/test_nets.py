@@ -103,3 +103,18 @@ def test_discriminator_heads_and_orthogonal_init():
     np.testing.assert_allclose(heads @ heads.T, np.eye(8), atol=1e-5)
     default = jax.eval_shape(networks.make_discriminator_network(D).init, jax.random.PRNGKey(0))
     assert default["params"]["heads"]["kernel"].shape == (128, 32)
+
+
+def test_authors_init_options_critic_hidden_uniform_and_disc_gain():
+    """``NetConfig.critic_hidden_init`` and ``disc_hidden_gain`` (the authors' 1e-4 and sqrt 2)."""
+    crit = networks.make_critic_network(D, K, hidden_sizes=SMALL, hidden_init_scale=1e-4)
+    p = crit.init(jax.random.PRNGKey(0))["params"]["torso"]
+    assert all(float(np.abs(p[f"hidden_{i}"]["kernel"]).max()) <= 1e-4 for i in range(len(SMALL)))
+    p0 = networks.make_critic_network(D, K, hidden_sizes=SMALL).init(jax.random.PRNGKey(0))["params"]["torso"]
+    assert float(np.abs(p0["hidden_0"]["kernel"]).max()) > 0.1  # PyTorch default U(+-1/sqrt(D))
+    disc = networks.make_discriminator_network(D, num_heads=4, hidden_sizes=(16, 8), hidden_gain=np.sqrt(2))
+    q = disc.init(jax.random.PRNGKey(0))["params"]
+    w = q["torso"]["hidden_0"]["kernel"]
+    np.testing.assert_allclose(w @ w.T, 2 * np.eye(D), atol=1e-5)
+    h = q["heads"]["kernel"]
+    np.testing.assert_allclose(h.T @ h, np.eye(4), atol=1e-5)  # [8, 4]: the heads keep gain 1

@@ -71,6 +71,10 @@ class EnvConfig:
     for at least the discriminators' history (t-3 ... t); the authors' code uses 4."""
     early_termination: bool = True
     """End the episode when a body other than the feet touches the ground."""
+    fall_height: float = 0.0
+    """0: a ground contact of any body but the feet is a fall. > 0: only while that body's
+    origin is below this height (the authors' code: 0.15 m, with contact force > 1 N), so a hand
+    or a knee may touch the ground while its link stays up."""
     contact_grace_steps: int = 2
     """Steps after reset in which ground contact does not end the episode."""
     allowed_contacts: tuple[str, ...] = ("right_foot", "left_foot")
@@ -321,8 +325,8 @@ class HumanoidEnv:
         data, ground = self.physics.step(state.data, target)
         # Contacts are those of the last substep's collision pass (one substep old); the link
         # frames are computed at the new state for the observations, in JAX for every backend.
-        touching = ground & self._bad_body
         frame = self.frames_of(data.qpos, data.qvel)
+        touching = fall_contacts(ground, self._bad_body, frame.pos[:, 2], cfg.fall_height)
         hist = jax.tree.map(lambda h, f: jnp.concatenate([h[1:], f[None]], 0), state.hist, frame)
         steps = state.steps + 1
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
@@ -371,6 +375,14 @@ def lowest_point(xpos: jax.Array, xmat: jax.Array, size: jax.Array, typ: jax.Arr
     low_box = z - jnp.sum(axis_z * size, -1)
     low = jnp.where(typ == 2, low_sphere, jnp.where(typ == 3, low_capsule, low_box))
     return jnp.min(low)
+
+
+def fall_contacts(ground: jax.Array, bad_body: jax.Array, body_z: jax.Array, fall_height: float) -> jax.Array:
+    """[nb] bool: bodies whose ground contact is a fall (``EnvConfig.fall_height``): any but
+    the allowed ones (``bad_body``), and with ``fall_height`` > 0 only while the body's origin
+    height ``body_z`` is below it."""
+    touching = ground & bad_body
+    return touching & (body_z < fall_height) if fall_height > 0 else touching
 
 
 def _last(hist: O.LinkFrames) -> O.LinkFrames:

@@ -138,10 +138,13 @@ class MultiHeadCritic(nn.Module):
     num_heads: int
     hidden_sizes: Sequence[int] = (1024, 512)
     activation: str = "relu6"
+    hidden_init_scale: float = 0.0
+    """0: hidden weights PyTorch's default, U(+-1/sqrt(fan_in)); > 0: U(+-hidden_init_scale)."""
 
     @nn.compact
     def __call__(self, obs: jax.Array) -> jax.Array:
-        h = MLP(self.hidden_sizes, self.activation, name="torso")(obs)
+        init = symmetric_uniform(self.hidden_init_scale) if self.hidden_init_scale > 0 else torch_default_init
+        h = MLP(self.hidden_sizes, self.activation, kernel_init=init, name="torso")(obs)
         return nn.Dense(
             self.num_heads,
             kernel_init=symmetric_uniform(1e-4),
@@ -153,19 +156,21 @@ class MultiHeadCritic(nn.Module):
 class DiscriminatorEnsemble(nn.Module):
     """Multi-head discriminator: ``obs [..., D] -> logits [..., num_heads]``.
 
-    Every layer has orthogonal weights and zero biases. Samples are processed independently
+    Every layer has orthogonal weights (gain ``hidden_gain`` for the hidden ones) and zero biases. Samples are processed independently
     (no batch statistics), which ``algos.disc`` relies on for per-sample input gradients.
     """
 
     num_heads: int = 32
     hidden_sizes: Sequence[int] = (256, 128)
     activation: str = "relu"
+    hidden_gain: float = 1.0
+    """Orthogonal gain of the hidden layers (the heads keep gain 1)."""
 
     @nn.compact
     def __call__(self, obs: jax.Array) -> jax.Array:
-        orthogonal = nn.initializers.orthogonal()
-        h = MLP(self.hidden_sizes, self.activation, kernel_init=orthogonal, name="torso")(obs)
-        return nn.Dense(self.num_heads, kernel_init=orthogonal, name="heads")(h)
+        hidden = nn.initializers.orthogonal(self.hidden_gain)
+        h = MLP(self.hidden_sizes, self.activation, kernel_init=hidden, name="torso")(obs)
+        return nn.Dense(self.num_heads, kernel_init=nn.initializers.orthogonal(), name="heads")(h)
 
 
 @jax.custom_vjp
