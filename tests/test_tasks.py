@@ -281,7 +281,7 @@ def test_short_location_training_beats_untrained_policies():
     from jaxmotion import eval as E
     from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
 
-    iters, chunk, seeds = 320, 40, 3
+    iters, chunk, seeds, episodes = 400, 40, 3, 32
     stand = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])
     # Targets 1-2 m away, ahead within ±60 degrees; no fall termination, so getting closer (by a
     # step, a lean or a fall) is what the reward pays for. The discriminator's weight is small.
@@ -297,7 +297,7 @@ def test_short_location_training_beats_untrained_policies():
         disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk)
 
     def final_distance(learner, ts):
-        ro = E.rollout(learner, ts, episodes=8, steps=env_cfg.episode_steps - 1)
+        ro = E.rollout(learner, ts, episodes=episodes, steps=env_cfg.episode_steps - 1)
         return float(np.mean(ro["info"]["distance"][-1])), E.rollout_metrics(learner, ro)["task"]
 
     with jit_enabled():
@@ -312,8 +312,11 @@ def test_short_location_training_beats_untrained_policies():
     print(f"final distance to the target: untrained {base}, trained {[round(d, 3) for d, _ in last]}; {summary}")
     # Measured: untrained 1.26-1.57 m (their random falls scatter), trained 1.08 m after 240
     # iterations; with the 16-iteration contact solver untrained 1.20-1.73 m and 1.022 m at 240, a
-    # margin of 0.08 m over the bar. Now 320 iterations and the last three chunks' policies
-    # averaged: 1.022 / 0.768 / 0.811 m. Below the best untrained seed by 0.1 m, a margin none of
-    # the untrained seeds has over another's best.
+    # margin of 0.08 m over the bar. Then 320 iterations and the last three chunks' policies
+    # averaged: 1.022 / 0.768 / 0.811 m on an AMD host, 1.42 / 1.42 / 0.55 m on an Intel one
+    # (the same untrained figures: training diverges with the CPU's float rounding). Now 400
+    # iterations, 32 episodes per evaluation: untrained 1.20-1.76 m, trained 0.77 / 0.43 / 0.55 m
+    # (Intel). Below the best untrained seed by 0.1 m, a margin none of the untrained seeds has
+    # over another's best.
     assert trained < base.min() - 0.1
     assert summary["name"] == "location" and "mean_distance_m" in summary
