@@ -21,8 +21,8 @@ The reference sequence of a group is its first clip, repeated to cover the episo
 
 ``coverage`` is the other direction: for each frame of one pass of that clip, the distance (group
 frame) to the nearest frame any episode played after its first 2 s (``COVERAGE_SKIP_S``),
-averaged (``error_m``), and the share within 0.1 m (``within``). DTW forgives a policy that repeats one part of the clip (the bottom of a
-squat, held); coverage does not.
+averaged (``error_m``), and the share within 0.1 m (``within``). DTW forgives a policy that
+repeats one part of the clip (the bottom of a squat, held); coverage does not.
 
 The task's metrics (``Task.summary``: e.g. the location success rate) come under ``"task"``. With
 ``--switch RUN2 [...] --switch-every S`` the policies of several runs that share observation and
@@ -217,20 +217,22 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
     skip = int(round(COVERAGE_SKIP_S / learner.env.dt))
     groups = {}
     for g, (gcfg, (links, anchor)) in enumerate(zip(learner.cfg.env.groups, learner.env.group_idx)):
-        # One reference for every episode: a shorter one is a prefix of the longest.
-        ref_pos, ref_quat = reference_sequence(learner, g, max(int(lengths.max()), 1))
+        # One reference for every episode (a shorter one is a prefix of the longest), long enough
+        # for one pass of the clip (coverage); group frames are per frame, so computed once.
+        n_clip = max(int(round(float(learner.env.motion_libs[g].clip_duration[0]) / learner.env.dt)), 1)
+        ref_pos, ref_quat = reference_sequence(learner, g, max(int(lengths.max()), n_clip))
+        ref_group = group_frame_positions(ref_pos, ref_quat, links, int(anchor))
         errs, errs_w, shown = [], [], []
         for e in range(episodes):
             n = int(lengths[e])
             if n < 2:
                 continue
             sp, sq = ro["pos"][:n, e], ro["quat"][:n, e]
-            rp, rq = ref_pos[:n], ref_quat[:n]
             gp = group_frame_positions(sp, sq, links, int(anchor))
-            errs.append(M.dtw_imitation_error(gp, group_frame_positions(rp, rq, links, int(anchor)))[0])
+            errs.append(M.dtw_imitation_error(gp, ref_group[:n])[0])
             if n > skip:
                 shown.append(gp[skip:])
-            rw = world_aligned(rp, rq, sp[0], sq[0])
+            rw = world_aligned(ref_pos[:n], ref_quat[:n], sp[0], sq[0])
             errs_w.append(M.dtw_imitation_error(sp[:, links], rw[:, links])[0])
         m, s = M.mean_std(errs) if errs else (float("nan"), float("nan"))
         mw, sw = M.mean_std(errs_w) if errs_w else (float("nan"), float("nan"))
@@ -238,12 +240,7 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
                              "dtw_error_world_m_mean": mw, "dtw_error_world_m_std": sw}
         if shown:
             # One pass of the clip against every frame played: the share of the reference shown.
-            n_clip = max(int(round(float(learner.env.motion_libs[g].clip_duration[0]) / learner.env.dt)), 1)
-            one = ref_pos[:n_clip], ref_quat[:n_clip]
-            if n_clip > ref_pos.shape[0]:
-                one = reference_sequence(learner, g, n_clip)
-            groups[gcfg.name]["coverage"] = M.coverage(
-                np.concatenate(shown, 0), group_frame_positions(*one, links, int(anchor)))
+            groups[gcfg.name]["coverage"] = M.coverage(np.concatenate(shown, 0), ref_group[:n_clip])
         if int(anchor) < 0:
             # Heading-frame groups drive the root: its height against the reference's shows a
             # held pose that DTW pairs with part of a cyclic clip.

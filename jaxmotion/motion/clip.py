@@ -204,8 +204,9 @@ def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
     to the end), joined in order into one clip that does not loop.
 
     Each later range's root is shifted horizontally (xy only, no turn) to carry on from where the
-    previous one ended, at its last horizontal step, and the velocities are recomputed across the seams, so join ranges whose
-    poses match there (e.g. the two lowest points of a squat, cutting out a bounce between them).
+    previous one ended, at its last horizontal step, and the velocities are recomputed across the
+    seams, so join ranges whose poses match there (e.g. two points of a squat on either side of a
+    bounce at its bottom, cutting the bounce out).
     For parts that do not meet, list the file twice with one range each: two clips.
 
     Raises:

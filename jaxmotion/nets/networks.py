@@ -156,8 +156,9 @@ class MultiHeadCritic(nn.Module):
 class DiscriminatorEnsemble(nn.Module):
     """Multi-head discriminator: ``obs [..., D] -> logits [..., num_heads]``.
 
-    Every layer has orthogonal weights (gain ``hidden_gain`` for the hidden ones) and zero biases. Samples are processed independently
-    (no batch statistics), which ``algos.disc`` relies on for per-sample input gradients.
+    Every layer has orthogonal weights (gain ``hidden_gain`` for the hidden ones) and zero
+    biases. Samples are processed independently (no batch statistics), which ``algos.disc``
+    relies on for per-sample input gradients.
     """
 
     num_heads: int = 32
