@@ -209,10 +209,9 @@ def prepare_callback(cfg: BenchConfig, qpos: np.ndarray) -> tuple[Timed, dict[st
     """The MuJoCo C backend as the env uses it: ``jax.pure_callback`` into ``mujoco.rollout``
     from a jitted ``lax.scan``, the same calls and initial poses as ``prepare_mjx``."""
     from jaxmotion.physics import backends
-    from jaxmotion.physics.character import build_mjcf
 
     pc = cfg.physics
-    phys = backends.MujocoPhysics(build_mjcf(pc.sword_shield), sim.mj_model(pc), sim.mjx_model(pc),
+    phys = backends.MujocoPhysics(sim.scene_xml(pc), sim.mj_model(pc), sim.mjx_model(pc),
                                   pc.substeps, num_cpus())
     step = jax.vmap(phys.step, in_axes=(0, None))
 

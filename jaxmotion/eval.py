@@ -103,7 +103,7 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             state, out = jax.vmap(env.step)(state, action)
             done = out.terminated | out.truncated
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
-            rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], state.data.qpos, alive & ~done,
+            rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], env.character_qpos(state.data.qpos), alive & ~done,
                    alive & out.terminated, out.info, alive, out.task_reward, w, markers(state))
             return (state, out.obs, alive & ~done), rec
 
@@ -112,7 +112,7 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps)))
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
-                first(state.data.qpos, qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward,
+                first(env.character_qpos(state.data.qpos), qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward,
                 meta_w, jax.tree.map(first, markers(state), mk))
 
     cache[sig] = run

@@ -133,12 +133,13 @@ def require_gl() -> str:
 
 
 # ---- the scene ---------------------------------------------------------------------------------
-def scene_mjcf(sword_shield: bool = False, ghost: bool = True, scenery: Sequence[Mapping[str, str]] = ()) -> str:
-    """MJCF of the character over the floor, plus (``ghost``) a translucent, collision-free copy
+def scene_mjcf(sword_shield: bool = False, ghost: bool = True, scenery: Sequence[Mapping[str, str]] = (),
+               racket: bool = False) -> str:
+    """MJCF of the character (``racket``: with the tennis racket) over the floor, plus (``ghost``) a translucent, collision-free copy
     whose bodies, joints and geoms are named ``ghost_<name>``; its qpos follows the character's.
     ``scenery``: extra static geoms (MJCF attribute dicts, e.g. ``physics.arena.scenery``)."""
     from jaxmotion.physics.character import build_mjcf
-    root = ET.fromstring(build_mjcf(sword_shield))
+    root = ET.fromstring(build_mjcf(sword_shield, racket=racket))
     wb = root.find("worldbody")
     for g in scenery:
         ET.SubElement(wb, "geom", contype="0", conaffinity="0", **dict(g))
@@ -197,11 +198,13 @@ class SceneRenderer:
 
     def __init__(self, sword_shield: bool = False, width: int = 640, height: int = 480,
                  group_colors: Mapping[int, Sequence[float]] | None = None,
-                 ghost_rgba: Sequence[float] = GHOST_RGBA, scenery: Sequence[Mapping[str, str]] = ()):
+                 ghost_rgba: Sequence[float] = GHOST_RGBA, scenery: Sequence[Mapping[str, str]] = (),
+                 racket: bool = False):
         import mujoco
         require_gl()
         self.mujoco = mujoco
-        self.model = mujoco.MjModel.from_xml_string(scene_mjcf(sword_shield, ghost=True, scenery=scenery))
+        self.model = mujoco.MjModel.from_xml_string(scene_mjcf(sword_shield, ghost=True, scenery=scenery,
+                                                               racket=racket))
         m = self.model
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), height)
@@ -303,7 +306,7 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
                 camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
                 ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True,
                 markers: Mapping[str, np.ndarray] | None = None,
-                scenery: Sequence[Mapping[str, str]] = ()) -> Iterator[np.ndarray]:
+                scenery: Sequence[Mapping[str, str]] = (), racket: bool = False) -> Iterator[np.ndarray]:
     """``render_frames`` one frame at a time (uint8 [H, W, 3] each), for long videos.
     ``markers``: name -> [T, 2, 3] task-goal segments to draw (``Task.markers``); ``scenery``:
     static geoms to add (ropes, piste lines); with it the camera follows the midpoint of the
@@ -319,7 +322,7 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
     track = qpos_seq[:, :3] if not scenery or ref_qpos_seq is None else 0.5 * (qpos_seq[:, :3] + ref_qpos_seq[:, :3])
     lookat = follow_lookat(track)
     from tqdm.auto import tqdm
-    with SceneRenderer(ss, width, height, group_colors, ghost_rgba, scenery) as sr:
+    with SceneRenderer(ss, width, height, group_colors, ghost_rgba, scenery, racket) as sr:
         sr.camera.distance, sr.camera.azimuth, sr.camera.elevation = (
             camera_distance, camera_azimuth, camera_elevation)
         for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress,
@@ -415,5 +418,6 @@ def render_rollout(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLik
     qpos = np.asarray(ro["qpos"])[:n, episode].astype(np.float64)
     ref = aligned_reference_qpos(reference_qpos(learner, group, n), qpos[0])
     markers = {k: np.asarray(v)[:n, episode] for k, v in (ro.get("markers") or {}).items()}
-    frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height, markers=markers)
+    frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height, markers=markers,
+                         racket=learner.env.cfg.physics.racket)
     return write_video(frames, path, fps or 1.0 / learner.env.dt)

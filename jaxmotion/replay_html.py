@@ -31,8 +31,8 @@ _GEOM_TYPES = {2: "sphere", 3: "capsule", 5: "cylinder", 6: "box"}  # mjtGeom va
 
 def character_geoms(sword_shield: bool = False,
                     group_colors: Mapping[int, Sequence[float]] | None = None,
-                    default_rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0)) -> list[dict]:
-    """The character's geoms as plain dicts for ``write_html``.
+                    default_rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), racket: bool = False) -> list[dict]:
+    """The character's geoms (``racket``: with the tennis racket) as plain dicts for ``write_html``.
 
     Each dict: ``body`` (link index, 0 = root), ``type`` (sphere | capsule | cylinder | box),
     ``size`` (MuJoCo's: radius / radius, half-length / half-sizes), ``pos`` [3] and ``quat`` [4]
@@ -42,7 +42,7 @@ def character_geoms(sword_shield: bool = False,
     """
     import mujoco
     from jaxmotion.physics.character import build_mjcf
-    m = mujoco.MjModel.from_xml_string(build_mjcf(sword_shield, floor=False))
+    m = mujoco.MjModel.from_xml_string(build_mjcf(sword_shield, floor=False, racket=racket))
     colors = dict(group_colors or {})
     out = []
     for g in range(m.ngeom):
@@ -589,5 +589,5 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     legend = {name: GROUP_PALETTE[i % len(GROUP_PALETTE)] for i, name in enumerate(names)}
     ref_name = names[group] if names else "reference"
     return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / learner.env.dt,
-                      character_geoms(ch.sword_shield, colors),
+                      character_geoms(ch.sword_shield, colors, racket=learner.env.cfg.physics.racket),
                       title=title or f"jaxmotion replay (ghost: {ref_name} reference)", legend=legend)

@@ -20,6 +20,7 @@ from typing import Any, Sequence
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 from flax import struct
 from mujoco import mjx
@@ -31,6 +32,7 @@ from jaxmotion.motion.motionlib import (MotionLib, load_motionlib, qpos_of, qpos
 from jaxmotion.physics import sim
 from jaxmotion.physics.arena import ArenaConfig
 from jaxmotion.physics.fk import LinkFK
+from jaxmotion.physics.props import Props
 from jaxmotion.physics.character import character
 from jaxmotion.tasks import TaskConfig, make_task
 
@@ -187,7 +189,10 @@ class HumanoidEnv:
         self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
         self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
         self._data0 = mjx.make_data(self.model)
-        m = sim.mj_model(cfg.physics)
+        # The character's own model: link frames, geoms and sizes; props follow it in the scene.
+        m = mujoco.MjModel.from_xml_string(sim.character_xml(cfg.physics))
+        self._nq, self._nv, self._nb = m.nq, m.nv, m.nbody - 1
+        self.num_props = len(cfg.physics.props)
         self._fk = LinkFK(m)
         geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0 and m.geom_type[g] in (2, 3, 6)]
         self._body_geoms = np.asarray(geoms)
@@ -240,11 +245,13 @@ class HumanoidEnv:
             # (clamped joints or a clip made for another skeleton can put a foot 10 cm deep).
             lift = jnp.maximum(-self.lowest_point(qpos_h[-1]), 0.0)
             qpos_h = qpos_h.at[..., 2].add(lift)
-        data = self._data0.replace(qpos=qpos_h[-1], qvel=qvel_h[-1])
+        data = self._data0.replace(qpos=self._data0.qpos.at[:self._nq].set(qpos_h[-1]),
+                                   qvel=self._data0.qvel.at[:self._nv].set(qvel_h[-1]))
         # The history is what the simulator's kinematics make of the reference poses, so the first
         # windows after a reset are built exactly like every later one.
         hist = self.frames_of(qpos_h, qvel_h)
         goal = self.task.init(k_goal, _last(hist), (clip, t))
+        data = self.place_props(data, goal)
         state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng, goal=goal)
         return state, self.policy_obs(state)
 
@@ -296,6 +303,30 @@ class HumanoidEnv:
         a lean tree walk, 4x cheaper than ``mjx.kinematics`` + ``com_vel`` on the 2-core CPU)."""
         return O.LinkFrames(*self._fk.frames(qpos, qvel))
 
+    # ---- props -------------------------------------------------------------------------
+    def props_of(self, data: mjx.Data, force: jax.Array | None = None) -> Props:
+        """The props' state in ``data`` (``physics/props.py``) and their force channels."""
+        p = self.num_props
+        return Props(qpos=data.qpos[self._nq:].reshape(p, 7), qvel=data.qvel[self._nv:].reshape(p, 6),
+                     force=jnp.zeros((0,), jnp.float32) if force is None else force)
+
+    def place_props(self, data: mjx.Data, goal: Any) -> mjx.Data:
+        """``data`` with the props where the task puts them (``Task.place``); moved props lose
+        their solver warm start."""
+        if not self.num_props:
+            return data
+        before = self.props_of(data)
+        after = self.task.place(goal, before)
+        moved = jnp.repeat(jnp.any(after.qvel != before.qvel, -1) | jnp.any(after.qpos != before.qpos, -1), 6)
+        return data.replace(qpos=data.qpos.at[self._nq:].set(after.qpos.reshape(-1)),
+                            qvel=data.qvel.at[self._nv:].set(after.qvel.reshape(-1)),
+                            qacc_warmstart=data.qacc_warmstart.at[self._nv:].set(
+                                jnp.where(moved, 0.0, data.qacc_warmstart[self._nv:])))
+
+    def character_qpos(self, qpos: jax.Array) -> jax.Array:
+        """The character's part [..., 7 + n_dof] of a scene's ``qpos``."""
+        return qpos[..., :self._nq]
+
     # ---- step --------------------------------------------------------------------------
     def pd_target(self, action: jax.Array) -> jax.Array:
         return self._mid + self.cfg.action_scale * action * self._half
@@ -303,7 +334,7 @@ class HumanoidEnv:
     def power(self, data: mjx.Data, target: jax.Array) -> jax.Array:
         """The servo's mechanical power sum_j |tau_j qdot_j| (W) at ``data``, holding ``target``
         (the torque formula of ``sim.pd_torque``: the state after the step, not a substep mean)."""
-        q, qd = data.qpos[7:], data.qvel[6:]
+        q, qd = data.qpos[7:self._nq], data.qvel[6:self._nv]
         tau = sim.pd_torque(self.character, q, qd, target)
         return jnp.nan_to_num(jnp.sum(jnp.abs(tau * qd)), nan=0.0, posinf=0.0)
 
@@ -322,15 +353,17 @@ class HumanoidEnv:
         """
         cfg = self.cfg
         target = self.pd_target(action)
-        data, ground = self.physics.step(state.data, target)
+        data, ground, force = self.physics.step_forces(state.data, target)
         # Contacts are those of the last substep's collision pass (one substep old); the link
         # frames are computed at the new state for the observations, in JAX for every backend.
-        frame = self.frames_of(data.qpos, data.qvel)
-        touching = fall_contacts(ground, self._bad_body, frame.pos[:, 2], cfg.fall_height)
+        qvel_c = data.qvel[:self._nv]
+        frame = self.frames_of(data.qpos[:self._nq], qvel_c)
+        touching = fall_contacts(ground[:self._nb], self._bad_body, frame.pos[:, 2], cfg.fall_height)
         hist = jax.tree.map(lambda h, f: jnp.concatenate([h[1:], f[None]], 0), state.hist, frame)
         steps = state.steps + 1
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
-        unstable = ~finite | jnp.any(jnp.abs(data.qvel) > cfg.max_qvel)
+        # Only the character's speeds: a struck ball may spin faster than any joint may turn.
+        unstable = ~finite | jnp.any(jnp.abs(qvel_c) > cfg.max_qvel)
         fell = cfg.early_termination & jnp.any(touching) & (steps > cfg.contact_grace_steps)
         terminated = fell | unstable
         truncated = (steps >= cfg.episode_steps) & ~terminated
@@ -338,7 +371,9 @@ class HumanoidEnv:
         hist = jax.tree.map(clean, hist)
         rng, k, k_task = jax.random.split(state.rng, 3)
         power = jnp.where(steps > 3, self.power(data, target), 0.0)  # the servo settles first (PHC's code)
-        task = self.task.step(state.goal, _last(state.hist), _last(hist), k_task, power)
+        goal = self.task.sense(state.goal, self.props_of(data, force)) if self.num_props else state.goal
+        task = self.task.step(goal, _last(state.hist), _last(hist), k_task, power)
+        data = self.place_props(data, task.goal)
         task_reward = jnp.where(unstable, 0.0, task.rewards)
         terminated = terminated | (task.terminated & (steps > cfg.contact_grace_steps))
         truncated = (truncated | task.truncated) & ~terminated

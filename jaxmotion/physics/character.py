@@ -72,7 +72,12 @@ def _hinges(prefix: str, axes: str, lo_hi: Sequence[tuple[float, float]], kp: fl
     return tuple(out)
 
 
-def _body_table(sword_shield: bool) -> list[BodySpec]:
+# Props (``physics/props.py``) have this contype bit, which no body geom's conaffinity has (they
+# have bit 1, the floor's contype): a ball passes through the character but bounces off the floor.
+PROP_BIT = 2
+
+
+def _body_table(sword_shield: bool, racket: bool = False) -> list[BodySpec]:
     cap = "capsule"
     bodies = [
         BodySpec("pelvis", None, (0, 0, 1), (), (
@@ -103,14 +108,27 @@ def _body_table(sword_shield: bool) -> list[BodySpec]:
         hand = BodySpec(f"{side}_hand", f"{side}_lower_arm", (0, 0, -0.258947), wrist, (
             (f"{side}_hand", "sphere", 'size=".04" density="1865"'),))
         arm.append(hand)
-        if sword_shield and side == "right":
+        if sword_shield and side == "right" and racket:
+            # A tennis racket in the sword's place (the body keeps the clips' name "sword"): a
+            # 0.32-m handle from the hand and a 0.32 x 0.25 m head whose face is normal to the
+            # sword's cutting edge (z), 0.31 kg in all. The head is 4 cm thick, a collision proxy:
+            # a ball struck at up to 20 m/s moves 8 cm per 240-Hz substep and would pass through
+            # a real racket's 2 cm (physics/props.py). Balls meet it through explicit pairs.
+            arm.append(BodySpec("sword", "right_hand", (0.74, 0, 0), (), (
+                ("racket_handle", cap, 'fromto="-0.87 0 0 -0.55 0 0" size="0.016" density="450"'),
+                ("racket_head", "box", f'pos="{RACKET_HEAD[0]:g} 0 0" size="0.16 0.125 0.02" density="65" '
+                 'rgba="0.2 0.7 0.3 1"'))))
+        elif sword_shield and side == "right":
             arm.append(BodySpec("sword", "right_hand", (0.74, 0, 0), (), (
                 ("sword_hilt", cap, 'fromto="-0.87 0 0 -0.64 0 0" size="0.023" density="300"'),
                 ("sword_blade", "box", 'pos="-0.34 0 0" size="0.34 0.01 0.035" density="600"'))))
         if sword_shield and side == "left":
-            # Ordered as in the ASE clips: the shield comes before the left hand.
-            arm.insert(2, BodySpec("shield", "left_lower_arm", (0, 0.07, -0.12), (), (
-                ("shield", "cylinder", 'fromto="0 0 0 0 0.03 0" size="0.3" density="250"'),)))
+            # Ordered as in the ASE clips: the shield comes before the left hand. With the racket
+            # the shield body stays (the clips move it) but weighs 4 g and touches nothing.
+            shield = (("shield", "cylinder", 'fromto="0 0 0 0 0.03 0" size="0.3" density="250"'),)
+            if racket:
+                shield = (("shield", "sphere", 'size="0.01" density="1000" conaffinity="0" rgba="0 0 0 0"'),)
+            arm.insert(2, BodySpec("shield", "left_lower_arm", (0, 0.07, -0.12), (), shield))
         bodies += arm
     for side, sgn in (("right", -1), ("left", 1)):
         # Hip hinges in y, x, z order (flexion, then abduction, then twist); ranges as the source.
@@ -154,9 +172,17 @@ def _write_body(b: BodySpec, children: dict[str, list[BodySpec]], indent: int) -
     return lines
 
 
-def build_mjcf(sword_shield: bool = False, floor: bool = True) -> str:
-    """Returns the MJCF text of the humanoid (optionally with sword and shield) over a floor."""
-    bodies = _body_table(sword_shield)
+# The racket head's centre in the "sword" body's frame.
+RACKET_HEAD = (-0.39, 0.0, 0.0)
+
+
+def build_mjcf(sword_shield: bool = False, floor: bool = True, racket: bool = False) -> str:
+    """Returns the MJCF text of the humanoid (optionally with sword and shield; ``racket``: a
+    tennis racket instead of the sword, and no shield) over a floor."""
+    if racket and not sword_shield:
+        raise ValueError("the racket needs the sword-and-shield character (its 3-DoF wrist): "
+                         "set env.physics.sword_shield=true")
+    bodies = _body_table(sword_shield, racket)
     children: dict[str, list[BodySpec]] = {}
     for b in bodies:
         if b.parent is not None:

@@ -22,7 +22,8 @@ import mujoco
 from mujoco import mjx
 
 from jaxmotion.physics import backends
-from jaxmotion.physics.character import Character, build_mjcf, character
+from jaxmotion.physics.character import Character, character
+from jaxmotion.physics.props import PropConfig, prop_channels, scene_mjcf
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,6 +43,12 @@ class PhysicsConfig:
     ls_iterations: int = 16
     sword_shield: bool = False
     """Use the 17-body sword-and-shield character (31 DoF) instead of the 15-body humanoid."""
+    racket: bool = False
+    """With ``sword_shield``: a tennis racket instead of the sword, and no shield
+    (``physics/character.py``)."""
+    props: tuple[PropConfig, ...] = ()
+    """Free bodies (balls) in the scene after the character, moved by the task
+    (``physics/props.py``)."""
     impl: str = "auto"
     """MJX implementation: 'jax', 'warp' (NVIDIA GPUs only) or 'auto' (warp where available)."""
     backend: str = "auto"
@@ -63,9 +70,19 @@ class PhysicsConfig:
         return 1.0 / self.control_hz
 
 
+def scene_xml(cfg: PhysicsConfig, floor: bool = True) -> str:
+    """The MJCF of the scene ``cfg`` describes: the character, its racket and the props."""
+    return scene_mjcf(cfg.sword_shield, cfg.racket, cfg.props, floor=floor)
+
+
+def character_xml(cfg: PhysicsConfig, floor: bool = True) -> str:
+    """The MJCF of the character alone (its racket included, no props): what the video draws."""
+    return scene_mjcf(cfg.sword_shield, cfg.racket, (), floor=floor)
+
+
 def mj_model(cfg: PhysicsConfig) -> mujoco.MjModel:
-    """The MuJoCo C model with the solver settings of ``cfg``."""
-    m = character(cfg.sword_shield).mj_model()
+    """The MuJoCo C model of the scene with the solver settings of ``cfg``."""
+    m = mujoco.MjModel.from_xml_string(scene_xml(cfg))
     m.opt.timestep = 1.0 / cfg.sim_hz
     m.opt.iterations = cfg.solver_iterations
     m.opt.ls_iterations = cfg.ls_iterations
@@ -95,8 +112,9 @@ def mjx_model(cfg: PhysicsConfig) -> mjx.Model:
 @functools.lru_cache(maxsize=8)
 def physics(cfg: PhysicsConfig):
     """The physics backend object of ``cfg`` (``backends.MJXPhysics`` or ``MujocoPhysics``)."""
-    return backends.make_physics(cfg.backend, mj_model(cfg), build_mjcf(cfg.sword_shield), mjx_model(cfg),
-                                 cfg.substeps, cfg.threads or None)
+    m = mj_model(cfg)
+    return backends.make_physics(cfg.backend, m, scene_xml(cfg), mjx_model(cfg), cfg.substeps,
+                                 cfg.threads or None, channels=prop_channels(m, cfg.props))
 
 
 def pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) -> mjx.Data:

@@ -4,10 +4,12 @@ Register a new one with ``TASKS["name"] = MyTask`` (a ``Task`` subclass taking `
 """
 
 from jaxmotion.tasks.base import (AimConfig, BoxingConfig, FencingConfig, HeadingConfig,  # noqa: F401
-                                  JuggleConfig, LocationConfig, Task, TaskConfig, TaskStep, TrackConfig, combine_weights)
+                                  JuggleConfig, LocationConfig, Task, TaskConfig, TaskStep, TennisConfig, TrackConfig,
+                                  combine_weights)
 from jaxmotion.tasks.bout import Boxing, Fencing
 from jaxmotion.tasks.juggle import JuggleLocation
 from jaxmotion.tasks.location import AimLocation, Heading, Location
+from jaxmotion.tasks.tennis import Tennis
 from jaxmotion.tasks.track import Track
 
 TASKS: dict[str, type[Task]] = {
@@ -19,6 +21,7 @@ TASKS: dict[str, type[Task]] = {
     "track": Track,
     "boxing": Boxing,
     "fencing": Fencing,
+    "tennis": Tennis,
 }
 
 

@@ -12,7 +12,11 @@ vmapped with the environment:
   ``prev`` to ``frame`` (``power``: the servo's mechanical power sum_j |tau_j qdot_j| at the new
   state, W; 0 on an episode's first 3 steps, while the servo takes over from the reference
   state, as the tracker's authors do): the next goal, one reward per ``reward_names`` entry, an extra termination and
-  per-step ``info`` scalars that ``summary`` turns into the task's evaluation metrics.
+  per-step ``info`` scalars that ``summary`` turns into the task's evaluation metrics;
+* for a scene with props (free balls, ``physics/props.py``): ``sense(goal, props) -> goal``
+  before ``step``, with the props' state and racket forces after the physics step, and
+  ``place(goal, props) -> props`` after ``step`` and at reset, where the task wants them (a
+  new ball); the scene writes that into the physics state.
 
 The learner makes one objective (critic head, PopArt statistics, weight ω) per reward name, next
 to one per discriminator; it never looks at which task it runs. Tasks are found by name in
@@ -89,6 +93,37 @@ class JuggleConfig:
 
     weight: float = 0.6
     """ω of the juggling reward (the authors': 0.6 juggling, 0.1 location, 0.06 arms, 0.24 body)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TennisConfig:
+    """Tennis swing (``tasks/tennis.py``; the paper's formula is in an appendix we do not have,
+    so this one is ours): a ball is fed beside the character every ``feed_every`` steps; hitting
+    it pays for its outgoing speed and for where it would land."""
+
+    feed_every: int = 60
+    """Control steps between balls (60: 2 s)."""
+    feed_forward: tuple[float, float] = (0.55, 0.85)
+    feed_right: tuple[float, float] = (0.35, 0.65)
+    feed_height: tuple[float, float] = (0.9, 1.3)
+    """Where a ball appears, from the root's ground point in its heading frame (m): ahead, to the
+    right (the racket side), above the floor; uniform in each range."""
+    feed_up_speed: tuple[float, float] = (0.5, 1.5)
+    """Its vertical speed upwards (m/s), as if tossed; no horizontal speed."""
+    target_ahead: tuple[float, float] = (8.0, 12.0)
+    target_side: tuple[float, float] = (-2.0, 2.0)
+    """The landing target, drawn with each ball: ahead and to the left (m) in the heading frame."""
+    target_speed: float = 10.0
+    """Outgoing speed that earns the full speed half of the hit reward (m/s)."""
+    landing_sigma: float = 2.0
+    """Landing half of the hit reward: exp(-d^2 / (2 sigma^2)), d the landing error (m)."""
+    touch_force: float = 1.0
+    """A racket contact of at least this normal force (N) is a hit."""
+    weight: float = 0.35
+    """ω of the hit reward."""
+    reach_weight: float = 0.15
+    """ω of the reach reward exp(-4 d^2), d the racket head's distance to the ball before it is
+    hit (our shaping; 0 leaves the paper's outcome-only reward)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -170,6 +205,7 @@ class TaskConfig:
     juggle: JuggleConfig = JuggleConfig()
     boxing: BoxingConfig = BoxingConfig()
     fencing: FencingConfig = FencingConfig()
+    tennis: TennisConfig = TennisConfig()
 
 
 @struct.dataclass
@@ -217,6 +253,14 @@ class Task:
              power: jax.Array | None = None) -> TaskStep:
         return TaskStep(goal=goal, rewards=jnp.zeros((0,), jnp.float32),
                         terminated=jnp.zeros((), bool), info={})
+
+    def sense(self, goal: Any, props) -> Any:
+        """The goal after the physics step moved the scene's props (``physics/props.Props``)."""
+        return goal
+
+    def place(self, goal: Any, props):
+        """Where the props should be before the next step (``Props``); default: where they are."""
+        return props
 
     def summary(self, info: dict[str, np.ndarray], alive: np.ndarray) -> dict[str, float]:
         """Evaluation metrics from per-step ``info`` arrays [T, E] over steps where ``alive``."""
