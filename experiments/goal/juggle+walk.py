@@ -6,7 +6,8 @@ Two body groups: the arms (both upper arms, forearms and hands; torso anchor; re
 (heading frame) the LAFAN1 walk clips. ω 0.06 arms / 0.24 body / 0.6 juggling / 0.1 location,
 as the authors. Location settings for juggling (notes §1): radius 0.75 m, speed 1-1.2 m/s,
 timers 90-149 steps, goals within ±60° at v0 = 1 m/s, no overshoot termination. The balls are
-the task's own ballistic state (not MuJoCo bodies yet): see `tasks/juggle.py`.
+free bodies of the MuJoCo scene (r 0.05 m, 57 g, no bounce; they pass through the body and each
+other): see `tasks/juggle.py`.
 
 Measured on the 2-core CPU (2026-12-02; `make train EXP=goal/juggle+walk ARGS="iterations=400
 eval_every=0"`, 1.64M samples in 13.7 min, then `python -m jaxmotion.eval <run> --episodes 8`
@@ -23,8 +24,14 @@ LOCATION_JUGGLE = LocationConfig(radius=0.75, speed_range=(1.0, 1.2), timer_rang
 
 
 def config():
+    import dataclasses
+
+    from jaxmotion.physics.props import PropConfig
     from jaxmotion.tasks import JuggleConfig
-    return goal(TaskConfig(name="juggle+location", location=LOCATION_JUGGLE, juggle=JuggleConfig(weight=0.6)),
-                (GroupConfig(name="arms", motions=("compositemotion/gym/juggling.json",), links=ARMS,
-                             anchor="torso", speed_range=(0.8, 1.2), weight=0.06),
-                 GroupConfig(name="body", motions=WALK, links=BODY, anchor="heading", weight=0.24)), WALK)
+    cfg = goal(TaskConfig(name="juggle+location", location=LOCATION_JUGGLE, juggle=JuggleConfig(weight=0.6)),
+               (GroupConfig(name="arms", motions=("compositemotion/gym/juggling.json",), links=ARMS,
+                            anchor="torso", speed_range=(0.8, 1.2), weight=0.06),
+                GroupConfig(name="body", motions=WALK, links=BODY, anchor="heading", weight=0.24)), WALK)
+    balls = tuple(PropConfig(name=f"ball{i}", radius=0.05, mass=0.057, restitution=0.0) for i in range(3))
+    physics = dataclasses.replace(cfg.env.physics, props=balls)
+    return dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, physics=physics))

@@ -12,7 +12,9 @@ explicit ``<pair>`` makes it bounce off the racket head, stiffer than the floor 
 Bounce (measured in MuJoCo C with a 57-g ball; the racket bounce is tested on both backends in ``tests/test_tennis.py``): MuJoCo's default soft
 contact (time constant 2 dt, damping ratio 1) rebounds at e ~ 0.05-0.15, so props use the direct
 (-stiffness, -damping) form with the damping that gives ``restitution`` (``_solref``). On the
-floor (a half-space) stiffness 2000 rebounds at 0.75-0.77 from 4 to 25 m/s at 120 Hz. A thin
+floor (a half-space) stiffness 5000 rebounds at 0.74-0.76 from 2 to 12 m/s for 0.75 and at
+0.09-0.26 for 0 (the juggling balls), at 120 and 240 Hz; a landing ball sinks 0.2-5 cm into this
+soft floor (at 120 Hz, 1e4 and more gain energy on landing). A thin
 racket head needs 1e5 and 240 Hz: at 120 Hz every setting tried (stiffness 2e3-1e5, time constant
 2 dt with damping ratio 0.2-1, heads 1.6-8 cm thick) let the ball through or threw it back
 faster than it came; at 240 Hz with a 4-cm head, 1e5 rebounds at 0.75 from 2 to 20 m/s (30 m/s
@@ -73,7 +75,7 @@ def _solref(restitution: float, stiffness: float) -> str:
     return f"{-stiffness:g} {-2 * zeta * np.sqrt(stiffness):g}"
 
 
-FLOOR_STIFFNESS = 2000.0
+FLOOR_STIFFNESS = 5000.0
 RACKET_STIFFNESS = 1e5
 
 

@@ -4,10 +4,13 @@
 **Balls.** Three balls of radius 0.05 m that the hands throw and catch in a cascade. The authors'
 collision filters keep the balls from touching each other or the hands and forearms, and a catch
 is a teleport-attach, so a ball interacts with the character only through the hand that holds
-it. Here the balls are the task's own state, integrated exactly (ballistic under gravity, no drag,
-as MuJoCo does for a free body without contacts) and resting where they reach the floor; they do
-not touch the torso, head or legs either (the authors' could bounce off them). Physics props
-(free bodies in the MuJoCo/MJX scene) are not built yet.
+it. With three props in the scene (``PhysicsConfig.props``, ``physics/props.py``; what
+``goal/juggle+walk`` runs) the balls are free bodies of the MuJoCo/MJX scene: the physics flies
+them and stops them on the floor, and the task reads them after every step (``sense``) and
+writes the ones it holds, throws or catches before the next (``place``). Props touch neither the
+body nor each other (the authors' could bounce off the torso, head or legs). Without props the
+balls are the task's own state, integrated exactly (ballistic under gravity, resting where they
+reach the floor), which is what a scene-free test drives.
 
 **Schedule** (control steps at 30 Hz): each hand throws every 20 steps, the left at 0, 20, ...,
 the right at 10, 30, ... The left hand starts with balls 0 and 2, the right with ball 1. A ball
@@ -108,8 +111,10 @@ def landing_point(pos: jax.Array, vel: jax.Array, height: jax.Array, t_max: jax.
     return pos + vel * t[..., None] + 0.5 * jnp.asarray([0.0, 0.0, -G]) * (t * t)[..., None]
 
 
-def step_balls(b: Balls, t: jax.Array, hands: jax.Array, hand_vel: jax.Array, dt: float):
+def step_balls(b: Balls, t: jax.Array, hands: jax.Array, hand_vel: jax.Array, dt: float, flight: bool = True):
     """One control step of the schedule at step ``t``: throws, flight, catches, forced catches.
+    ``flight`` False: the free balls have flown already (the physics did; ``b`` holds where they
+    are now) and thrown balls are left at the hand with its velocity for the physics to fly.
 
     Returns (balls, thrown [3] bool, caught [3] bool, forced [3] bool)."""
     held = b.holder >= 0
@@ -123,8 +128,11 @@ def step_balls(b: Balls, t: jax.Array, hands: jax.Array, hand_vel: jax.Array, dt
                   missed=jnp.where(thrown, False, b.missed),
                   release_h=jnp.where(thrown, pos[:, 2], b.release_h), released=b.released | thrown)
     free = b.holder < 0
-    fp, fv = fly(b.pos, b.vel, dt)
-    pos, vel = jnp.where(free[:, None], fp, b.pos), jnp.where(free[:, None], fv, b.vel)
+    if flight:
+        fp, fv = fly(b.pos, b.vel, dt)
+        pos, vel = jnp.where(free[:, None], fp, b.pos), jnp.where(free[:, None], fv, b.vel)
+    else:
+        pos, vel = b.pos, b.vel
     dist = jnp.linalg.norm(pos - hands[b.to_hand], axis=-1)
     caught = free & ~thrown & (vel[:, 2] < 0) & (dist < CATCH_DISTANCE)
     forced = free & ~caught & (t + 1 >= b.throw_at)
@@ -176,6 +184,10 @@ class JuggleLocation(Location):
         ch = env.character
         self._hands = jnp.asarray([ch.body_index("left_hand"), ch.body_index("right_hand")])
         self._v_star = target_speed(env.dt)
+        props = env.cfg.physics.props if hasattr(env, "cfg") else ()
+        if len(props) not in (0, 3):
+            raise ValueError(f"juggling needs three balls in the scene (env.physics.props) or none, got {len(props)}")
+        self._physical = len(props) == 3
 
     def weights(self):
         return (self.cfg.juggle.weight, self.cfg.location.weight)
@@ -202,7 +214,8 @@ class JuggleLocation(Location):
 
     def step(self, goal: JuggleGoal, prev, frame, rng, power=None) -> TaskStep:
         hands, hand_vel = self.hands(frame)
-        balls, thrown, caught, forced = step_balls(goal.balls, goal.t, hands, hand_vel, self.env.dt)
+        balls, thrown, caught, forced = step_balls(goal.balls, goal.t, hands, hand_vel, self.env.dt,
+                                                   flight=not self._physical)
         r = hand_rewards(balls, thrown, hands, hand_vel, goal.t, self.env.dt, self._v_star).mean()
         loc = super().step(goal.loc, prev, frame, rng)
         # |v_z - v*| of this step's release (the hand that threw; 0 when none did).
@@ -211,6 +224,19 @@ class JuggleLocation(Location):
                     release_error=jnp.where(thrown.any(), jnp.abs(hand_vel[thrower, 2] - self._v_star), 0.0))
         return TaskStep(goal=JuggleGoal(loc=loc.goal, balls=balls, t=goal.t + 1),
                         rewards=jnp.concatenate([r[None], loc.rewards]), terminated=loc.terminated, info=info)
+
+    def sense(self, goal: JuggleGoal, props) -> JuggleGoal:
+        """Free balls where the physics flew them; held balls stay with their hand."""
+        b = goal.balls
+        free = (b.holder < 0)[:, None]
+        return goal.replace(balls=b.replace(pos=jnp.where(free, props.qpos[:, :3], b.pos),
+                                            vel=jnp.where(free, props.qvel[:, :3], b.vel)))
+
+    def place(self, goal: JuggleGoal, props):
+        """Every ball where the task has it: held and just-thrown balls at the hand with its
+        velocity; a free ball is written back unchanged (where ``sense`` read it)."""
+        b = goal.balls
+        return props.replace(qpos=props.qpos.at[:, :3].set(b.pos), qvel=props.qvel.at[:, :3].set(b.vel))
 
     def steer(self, goal: JuggleGoal, frame, move, turn) -> JuggleGoal:
         return goal.replace(loc=super().steer(goal.loc, frame, move, turn))
