@@ -21,6 +21,11 @@ config fields that tell them apart (e.g. ``multi_objective=False``) unless ``--l
 (one label per curve, in order of first appearance). ``--keys`` takes metric names or glob
 patterns (default: ``reward/*`` and any ``eval/*/dtw_error_m*``). With a single run folder and
 neither ``--out`` nor ``--keys``, it writes that run's PNGs as ``plot_run`` does.
+
+``--reach 'KEY>=VALUE' ['KEY<=VALUE' ...]`` measures sample efficiency: for each curve (the
+smoothed mean over its seeds) the samples at which it first reaches VALUE, interpolated between
+logged points, and their ratio to the first curve's (e.g. scratch vs incremental training, paper
+Fig. 11); printed as a table, and drawn as a dashed line on the KEY panel.
 """
 
 from __future__ import annotations
@@ -242,7 +247,10 @@ def plot_meta_weights(learner, ro: dict, out: str | Path, episode: int = 0) -> P
     out = Path(out)
     fig.savefig(out)
     plt.close(fig)
-    return out
+    for row in reached:
+        first = next(r["samples"] for r in reached if r["key"] == row["key"] and r["value"] == row["value"])
+        row["ratio"] = row["samples"] / first if first and math.isfinite(first) else float("nan")
+    return out, reached
 
 
 # ---- several runs ------------------------------------------------------------------------------
@@ -352,11 +360,33 @@ def mean_std_curve(curves: Sequence[tuple[np.ndarray, np.ndarray]], num: int = 2
     return xs, ys.mean(0), ys.std(0)
 
 
+def parse_reach(spec: str) -> tuple[str, float, bool]:
+    """'KEY>=VALUE' or 'KEY<=VALUE' -> (key, value, rising)."""
+    m = re.fullmatch(r"\s*(\S+?)\s*(>=|<=)\s*([-+0-9.eE]+)\s*", spec)
+    if not m:
+        raise ValueError(f"--reach wants 'KEY>=VALUE' or 'KEY<=VALUE', got {spec!r}")
+    return m.group(1), float(m.group(3)), m.group(2) == ">="
+
+
+def samples_to_reach(x: np.ndarray, y: np.ndarray, value: float, rising: bool = True) -> float:
+    """The first x at which ``y`` reaches ``value`` (from below if ``rising``, else from above),
+    linearly interpolated between the two points around the crossing; nan if it never does."""
+    x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
+    ok = (y >= value) if rising else (y <= value)
+    if not ok.any():
+        return float("nan")
+    i = int(np.argmax(ok))
+    if i == 0 or y[i] == y[i - 1]:
+        return float(x[i])
+    return float(x[i - 1] + (value - y[i - 1]) * (x[i] - x[i - 1]) / (y[i] - y[i - 1]))
+
+
 def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[str] | None = None,
                  keys: Sequence[str] | None = None, smooth_window: int | None = None,
-                 title: str | None = None) -> Path:
+                 title: str | None = None, reach: Sequence[str] = ()) -> tuple[Path, list[dict]]:
     """Overlays runs (seeds of one config grouped into mean ± std) for each metric; see the
-    module docstring. Returns the written PNG path."""
+    module docstring. Returns the written PNG path and, per ``reach`` spec and curve, a row
+    {key, value, curve, samples, ratio} (ratio: samples over the first curve's)."""
     plt = _mpl()
     run_dirs = find_runs(runs)
     grouped = group_runs(run_dirs)
@@ -366,13 +396,15 @@ def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[s
                              + "; ".join(f"{l} ({len(rs)} runs)" for l, rs in grouped))
         grouped = [(lab, rs) for lab, (_, rs) in zip(labels, grouped)]
     rows = {r: read_metrics(r) for r in run_dirs}
-    patterns = list(keys or DEFAULT_KEYS)
-    keys = expand_keys(patterns, list(rows.values()))
+    goals = [parse_reach(r) for r in reach]
+    patterns = list(keys or DEFAULT_KEYS) + [k for k, _, _ in goals]
+    keys = list(dict.fromkeys(expand_keys(patterns, list(rows.values()))))
     if not keys:
         raise ValueError(f"no metric matches {patterns} in these runs")
     cols = min(3, len(keys))
     nrows = math.ceil(len(keys) / cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(5.2 * cols, 3.8 * nrows), dpi=100, squeeze=False)
+    reached: list[dict] = []
     for ax, key in zip(axes.flat, keys):
         for i, (label, rs) in enumerate(grouped):
             curves = []
@@ -388,6 +420,13 @@ def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[s
             ax.plot(x, m, color=color, lw=1.6, label=f"{label} (n={n})" if n > 1 else label)
             if n > 1:
                 ax.fill_between(x, m - s, m + s, color=color, alpha=0.2, lw=0)
+            for k, value, rising in goals:
+                if k == key:
+                    reached.append(dict(key=k, value=value, curve=label,
+                                        samples=samples_to_reach(x, m, value, rising)))
+        for k, value, _ in goals:
+            if k == key:
+                ax.axhline(value, color="k", ls="--", lw=0.8)
         ax.set_title(key, fontsize=10)
         ax.set_xlabel("samples")
         ax.grid(alpha=0.3)
@@ -401,7 +440,10 @@ def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[s
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)
     plt.close(fig)
-    return out
+    for row in reached:
+        first = next(r["samples"] for r in reached if r["key"] == row["key"] and r["value"] == row["value"])
+        row["ratio"] = row["samples"] / first if first and math.isfinite(first) else float("nan")
+    return out, reached
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -412,20 +454,26 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--keys", nargs="+", default=None, help="metric names or globs (default: reward/*, eval/*/dtw_error_m*)")
     p.add_argument("--smooth", type=int, default=None, help="moving-average window in iterations (default: auto)")
     p.add_argument("--title", default=None)
+    p.add_argument("--reach", nargs="+", default=(), metavar="'KEY>=VALUE'",
+                   help="samples at which each curve first reaches VALUE of KEY (>= rising, <= falling)")
     args = p.parse_args(argv)
     try:
         runs = find_runs(args.runs)
-        if len(runs) == 1 and args.out is None and args.keys is None:
+        if len(runs) == 1 and args.out is None and args.keys is None and not args.reach:
             for path in plot_run(runs[0], smooth_window=args.smooth):
                 print(path)
             return 0
-        out = plot_compare(runs, args.out or Path("compare.png"), args.labels, args.keys,
-                           args.smooth, args.title)
+        out, reached = plot_compare(runs, args.out or Path("compare.png"), args.labels, args.keys,
+                                    args.smooth, args.title, args.reach)
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     for label, rs in group_runs(runs) if not args.labels else []:
         print(f"{label}: {len(rs)} run(s)")
+    for r in reached:
+        print(f"{r['key']} reaches {r['value']:g}: {r['curve']}: "
+              + (f"{r['samples']:,.0f} samples (x{r['ratio']:.2f} of the first curve)"
+                 if math.isfinite(r["samples"]) else "not reached"))
     print(out)
     return 0
 

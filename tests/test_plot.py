@@ -95,7 +95,7 @@ def test_overlay_groups_seeds(tmp_path):
         "multi_objective=True, popart=True": 3, "multi_objective=False, popart=True": 2,
         "multi_objective=True, popart=False": 1}
     assert sorted(r.name for r in groups["multi_objective=True, popart=True"]) == ["mo_s0", "mo_s1", "mo_s2"]
-    out = P.plot_compare(runs, tmp_path / "cmp.png")
+    out, _ = P.plot_compare(runs, tmp_path / "cmp.png")
     assert out.read_bytes()[:8] == PNG and out.stat().st_size > 1000
     # The CLI: names for the curves, chosen metrics; a wrong number of labels is an error.
     rc = P.main([str(tmp_path / "ablation"), "--out", str(tmp_path / "cli.png"),
@@ -109,3 +109,39 @@ def test_cli_single_run_writes_into_the_run(tmp_path):
     run = _make_run(tmp_path / "one")
     assert P.main([str(run)]) == 0
     assert (run / "plot_overview.png").is_file()
+
+
+def test_samples_to_reach_by_hand():
+    x = np.array([0.0, 100.0, 200.0, 300.0])
+    y = np.array([0.0, 0.2, 0.6, 0.5])
+    assert P.samples_to_reach(x, y, 0.4) == pytest.approx(150.0)  # between 0.2 at 100 and 0.6 at 200
+    assert P.samples_to_reach(x, y, 0.0) == 0.0
+    assert np.isnan(P.samples_to_reach(x, y, 0.7))
+    assert P.samples_to_reach(x, 1.0 - y, 0.7, rising=False) == pytest.approx(125.0)
+    assert P.parse_reach("eval/task/reward_aim>=0.3") == ("eval/task/reward_aim", 0.3, True)
+    with pytest.raises(ValueError, match="KEY>=VALUE"):
+        P.parse_reach("reward/upper=0.3")
+
+
+def test_reach_compares_sample_efficiency(tmp_path, capsys):
+    """Two configs whose reward/upper rises at 0.05 per iteration (128 samples), one 0.3 ahead:
+    it reaches 0.4 at iteration 2 instead of 8, a quarter of the samples."""
+    _make_run(tmp_path / "cmp" / "slow", multi_objective=True)
+    _make_run(tmp_path / "cmp" / "fast", multi_objective=False, offset=0.3)
+    runs = P.find_runs([tmp_path / "cmp"])
+    for r in runs:  # noiseless, so the crossing is exact
+        rows = [json.loads(l) for l in (r / "metrics.jsonl").read_text().splitlines()]
+        off = 0.3 if r.name == "fast" else 0.0
+        for row in rows:
+            row["reward/upper"] = off + 0.05 * row["iteration"]
+        (r / "metrics.jsonl").write_text("\n".join(json.dumps(row) for row in rows) + "\n")
+    out, reached = P.plot_compare(runs, tmp_path / "r.png", keys=["reward/upper"], smooth_window=1,
+                                  reach=["reward/upper>=0.4"])
+    by = {r["curve"]: r for r in reached}
+    slow, fast = by["multi_objective=True"], by["multi_objective=False"]
+    assert slow["samples"] == pytest.approx(8 * 128) and fast["samples"] == pytest.approx(2 * 128)
+    first, other = (slow, fast) if reached[0]["curve"] == slow["curve"] else (fast, slow)
+    assert first["ratio"] == 1.0 and other["ratio"] == pytest.approx(other["samples"] / first["samples"])
+    assert P.main([str(tmp_path / "cmp"), "--out", str(tmp_path / "c.png"), "--keys", "reward/upper",
+                   "--smooth", "1", "--reach", "reward/upper>=0.4"]) == 0
+    assert "reaches 0.4" in capsys.readouterr().out
