@@ -247,10 +247,7 @@ def plot_meta_weights(learner, ro: dict, out: str | Path, episode: int = 0) -> P
     out = Path(out)
     fig.savefig(out)
     plt.close(fig)
-    for row in reached:
-        first = next(r["samples"] for r in reached if r["key"] == row["key"] and r["value"] == row["value"])
-        row["ratio"] = row["samples"] / first if first and math.isfinite(first) else float("nan")
-    return out, reached
+    return out
 
 
 # ---- several runs ------------------------------------------------------------------------------

@@ -183,8 +183,10 @@ def _scene(task: str) -> HumanoidEnv:
     return HumanoidEnv(cfg, motion_libs=(lib, lib), init_lib=lib)
 
 
-# track: tests/test_track.py; the two-player tasks (boxing, fencing): tests/test_bout.py
-@pytest.mark.parametrize("name", sorted(n for n in TASKS if n != "track" and not getattr(TASKS[n], "two_player", False)))
+# track: tests/test_track.py; tennis (needs its racket and ball): tests/test_tennis.py; the
+# two-player tasks (boxing, fencing): tests/test_bout.py
+@pytest.mark.parametrize("name", sorted(n for n in TASKS if n not in ("track", "tennis")
+                                        and not getattr(TASKS[n], "two_player", False)))
 def test_every_task_quick_check(name):
     """Jitted and vmapped init/observe/step on moving frames: shapes, no NaN, rewards >= floor."""
     # Short goal timers, so every goal runs out and is redrawn within the loop.
