@@ -169,6 +169,52 @@ def test_scripted_punch_and_thrust_always_register_a_touch(sport, speed):
             assert f[:first + 1, 1].max() == 0.0
 
 
+def _arm_punch(sim_hz: float, speed: float, lateral: float, lead_s: float = 0.1) -> np.ndarray:
+    """Player 0 stands still and punches with the arm only: shoulder and elbow velocities (least
+    squares through the glove's Jacobian) that move the glove at ``speed`` straight at player 1's
+    chest 10 cm ahead, and PD targets that lead the pose along them by ``lead_s`` (the servo
+    drives the punch). Returns each control step's scoring force of player 0 [steps]."""
+    cfg = A.ArenaConfig(sport="boxing")
+    phys, m = _c_physics(cfg, sim_hz, int(round(sim_hz / 30)))
+    lay = A.layout(cfg)
+    d = mujoco.MjData(m)
+    joint = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)
+    d.qpos[m.jnt_qposadr[joint("p0_right_shoulder_y")]] = -np.pi / 2 + 0.6  # the arm forward, low
+    d.qpos[m.jnt_qposadr[joint("p0_right_elbow")]] = -1.2  # and bent
+    d.qpos[[2, lay.nq + 2]] += 0.02
+    d.qpos[lay.nq + 3:lay.nq + 7] = [0.0, 0.0, 0.0, 1.0]  # player 1 faces player 0
+    mujoco.mj_forward(m, d)
+    glove = _gid(m, "p0_right_hand")
+    arm = [m.jnt_dofadr[joint(f"p0_right_{n}")] for n in ("shoulder_x", "shoulder_y", "shoulder_z", "elbow")]
+    jac = np.zeros((3, m.nv))
+    mujoco.mj_jacGeom(m, d, jac, None, glove)
+    qd = np.linalg.lstsq(jac[:, arm], np.array([speed, 0.0, 0.0]), rcond=None)[0]
+    np.testing.assert_allclose(jac[:, arm] @ qd, [speed, 0.0, 0.0], atol=1e-9)
+    gap = 0.10 + m.geom_size[glove, 0] + m.geom_size[_gid(m, "p1_torso"), 0]
+    d.qpos[lay.nq:lay.nq + 3] += d.geom_xpos[glove] + np.array([gap, lateral, 0.0]) - d.geom_xpos[_gid(m, "p1_torso")]
+    qvel = np.zeros(m.nv)
+    qvel[arm] = qd
+    target = np.concatenate([d.qpos[7:lay.nq], d.qpos[lay.nq + 7:]])
+    target[np.asarray(arm) - 6] += lead_s * qd
+    q, v, w = d.qpos[None].astype(np.float32), qvel[None].astype(np.float32), np.zeros((1, m.nv), np.float32)
+    out = []
+    for _ in range(6):
+        q, v, w, _, f = phys.host_step(q, v, w, target[None].astype(np.float32))
+        out.append(f[0, 0])
+    return np.asarray(out)
+
+
+def test_scripted_arm_only_punch_registers_a_touch():
+    """Calibration (recorded in ``physics/arena.py``): an arm-only punch, the body still, with the
+    glove at 8 m/s registers a touch at 120, 240 and 480 Hz, centrally or 4 cm off, and saturates
+    the 200-N damage clip; at 2 m/s it still touches."""
+    for hz in (120.0, 240.0, 480.0):
+        for lateral in (0.0, 0.04):
+            f = _arm_punch(hz, 8.0, lateral)
+            assert f.max() >= 200.0, (hz, lateral, f)
+        assert _arm_punch(hz, 2.0, 0.0).max() >= 1.0, hz
+
+
 def _env(sport: str, backend: str = "mujoco", **kw) -> BoutEnv:
     ss = sport == "fencing"
     clip = make_test_clip(num_frames=40, root_vel=(0.0, 0.0, 0.0), sword_shield=ss)
