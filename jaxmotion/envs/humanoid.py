@@ -10,7 +10,9 @@ or timed out (the reset state comes back in ``state``; the pre-reset observation
 ``StepOut.final_obs`` for bootstrapping), and an environment whose physics went non-finite is
 reset without its NaNs reaching the batch. The task (``EnvConfig.task``, see ``tasks/``) adds its
 goal state to ``EnvState.goal``, its goal features after the body state in the observation, its
-rewards to ``StepOut.task_reward`` and may end an episode.
+rewards to ``StepOut.task_reward`` and may end an episode. Props (balls, ``physics/props.py``)
+follow the character in the physics state; the task reads them after each step and places them
+before the next (``Task.sense``/``Task.place``).
 """
 
 from __future__ import annotations
