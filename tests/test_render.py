@@ -1,12 +1,13 @@
 """Tests of jaxmotion.render (offscreen MuJoCo frames, video files) and jaxmotion.replay_html
-(the self-contained three.js page, checked in headless Chromium). Numpy/MuJoCo only: quick
-under JAX_DISABLE_JIT=1."""
+(the self-contained three.js page, checked in headless Chromium by jaxmotion.browser).
+Numpy/MuJoCo only: quick under JAX_DISABLE_JIT=1."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from jaxmotion import browser as B
 from jaxmotion import render as RD
 from jaxmotion import replay_html as H
 from jaxmotion.motion import group_indices, make_test_clip
@@ -173,7 +174,7 @@ def test_write_html_is_self_contained(tmp_path):
 
 @pytest.fixture(scope="module")
 def chromium():
-    path = H.find_chromium()
+    path = B.find_chromium()
     if path is None:
         pytest.skip("Chromium not installed (apt-get install chromium): cannot check the HTML replay")
     return path
@@ -181,7 +182,7 @@ def chromium():
 
 def test_html_replay_renders_in_headless_chromium(tmp_path, chromium):
     p = _page(tmp_path)
-    res = H.check_in_browser(p, tmp_path / "shot.png", width=640, height=480, frame=6,
+    res = B.check_in_browser(p, tmp_path / "shot.png", width=640, height=480, frame=6,
                              chromium=chromium)
     assert res["ready"], f"page did not start: {res}"
     assert res["errors"] == [], res["errors"]
