@@ -73,6 +73,15 @@ def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:
     return None
 
 
+def acting_policy(t: jax.Array, switch_steps: int, num_policies: int) -> jax.Array:
+    """Index of the policy that chooses the action at control step ``t`` when ``num_policies``
+    take turns every ``switch_steps`` steps (0: the first one always). One definition serves the
+    choice of the action and its record, so what the video shows is what acted."""
+    if not switch_steps:
+        return jnp.zeros_like(t)
+    return (t // switch_steps) % num_policies
+
+
 def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int = 0):
     """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape.
 
@@ -94,7 +103,7 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
         def step(carry, xs):
             state, obs, alive = carry
             k, t = xs
-            which = (t // switch_steps) % len(policies) if switch_steps else jnp.zeros((), jnp.int32)
+            which = acting_policy(t, switch_steps, len(policies))
             acts = [learner.act(p, obs, None if deterministic else k)[0] for p in policies]
             action = jnp.stack(acts)[which]
             # Incremental learning: the weights w of the meta action (paper Figs. 7-8).
@@ -102,18 +111,21 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
                  else jnp.zeros((episodes, 0)))
             state, out = jax.vmap(env.step)(state, action)
             done = out.terminated | out.truncated
+            # The recorded frame t + 1 is where step t + 1 begins: its acting policy is that step's.
+            acting = jnp.full((episodes,), acting_policy(t + 1, switch_steps, len(policies)), jnp.int32)
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
             rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], env.character_qpos(state.data.qpos), alive & ~done,
-                   alive & out.terminated, out.info, alive, out.task_reward, w, markers(state))
+                   alive & out.terminated, out.info, alive, out.task_reward, w, markers(state), acting)
             return (state, out.obs, alive & ~done), rec
 
         alive0 = jnp.ones((episodes,), bool)
-        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, mk) = jax.lax.scan(
+        _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, mk, acting) = jax.lax.scan(
             step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps)))
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
+        acting0 = jnp.full((episodes,), acting_policy(jnp.int32(0), switch_steps, len(policies)), jnp.int32)
         return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
                 first(env.character_qpos(state.data.qpos), qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward,
-                meta_w, jax.tree.map(first, markers(state), mk))
+                meta_w, jax.tree.map(first, markers(state), mk), first(acting0, acting))
 
     cache[sig] = run
     return run
@@ -132,17 +144,19 @@ def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes:
     ``alive`` [T+1, E] (the episode has not ended yet), ``fell`` [E]; the task's per-step
     ``info`` {name: [T, E]}, ``stepped`` [T, E] (the step belongs to the episode, its last one
     included), ``task_reward`` [T, E, R] and, for an incremental policy, ``meta_w`` [T, E, A]
-    (the weights of the meta action; [T, E, 0] otherwise), and ``markers`` {name: [T+1, E, 2, 3]}:
-    what the task draws of its goal (``Task.markers``) at each recorded state.
+    (the weights of the meta action; [T, E, 0] otherwise), ``markers`` {name: [T+1, E, 2, 3]}:
+    what the task draws of its goal (``Task.markers``) at each recorded state, and ``acting``
+    [T+1, E] int: the index (in ``ts``) of the policy that chooses the action at each recorded
+    state (the last: the one whose turn it would be; all zeros without switching).
     """
     run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0)
-    pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, markers = jax.device_get(
+    pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, markers, acting = jax.device_get(
         run(ts, jax.random.PRNGKey(seed)))
     if isinstance(ts, tuple) and switch_steps:
         t = np.arange(steps)
         info = dict(info, switch=np.broadcast_to(((t % switch_steps) == 0) & (t > 0), (episodes, steps)).T)
     return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell, "info": info,
-            "stepped": stepped, "task_reward": task_reward, "meta_w": meta_w, "markers": markers}
+            "stepped": stepped, "task_reward": task_reward, "meta_w": meta_w, "markers": markers, "acting": acting}
 
 
 def group_frame_positions(pos: np.ndarray, quat: np.ndarray, links: np.ndarray, anchor: int) -> np.ndarray:
@@ -379,12 +393,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
     # --- visualisation (jaxmotion.render / replay_html / plot) ---
+    names = res["switching"]["runs"] if switch_steps else ()  # ro["acting"] indexes these
+    if names and (args.video or args.html):
+        from jaxmotion.render import policy_legend
+        print(f"  acting policy (sphere over the head): {policy_legend(names)}")
     if args.video:
         from jaxmotion.render import render_rollout
-        print(f"video: {render_rollout(learner, ro, args.video)}")
+        print(f"video: {render_rollout(learner, ro, args.video, policies=names)}")
     if args.html:
         from jaxmotion.replay_html import write_rollout_html
-        print(f"html: {write_rollout_html(learner, ro, args.html)}")
+        print(f"html: {write_rollout_html(learner, ro, args.html, policies=names)}")
     if not args.no_plots and ro["meta_w"].shape[-1]:
         from jaxmotion.plot import plot_meta_weights
         print(f"meta weights: {plot_meta_weights(learner, ro, args.run / 'meta_weights.png')}")

@@ -20,6 +20,9 @@ as a whole-body motion; the other groups' clips are not drawn). The ghost's qpos
 MotionLib ``sample`` + ``qpos_qvel`` of that group's first clip at the control rate, repeated to
 the episode length as ``eval.reference_sequence`` does, and moved rigidly (xy + yaw) so that its
 first root heading frame coincides with the simulation's first one, as ``eval.world_aligned``.
+The task's goal markers are drawn over it; when several policies took turns (``eval --switch``),
+so is a sphere over the head in the acting policy's colour (``POLICY_COLORS``; eval prints which
+colour is which run).
 """
 
 from __future__ import annotations
@@ -42,6 +45,22 @@ MARKER_RGBA = {"target": (0.1, 0.8, 0.2, 0.9), "aim": (0.9, 0.15, 0.1, 0.9), "he
 """Colours of the task markers by name (``Task.markers``; a trailing number is ignored: ball0 is a
 ball); others are yellow."""
 MARKER_RADII = {"ball": 0.05}
+ACTING_PREFIX = "acting"
+"""Markers named ``acting<i>`` show that policy ``i`` acts (policy switching): a sphere over the
+head in ``POLICY_COLORS[i]``."""
+ACTING_HEIGHT_M = 0.45  # above the head link's origin: clear of the head sphere (its top is 0.27 m up)
+ACTING_RADIUS = 0.07
+POLICY_COLORS = (
+    ("white", (0.97, 0.97, 0.97, 1.0)),
+    ("magenta", (0.95, 0.15, 0.85, 1.0)),
+    ("cyan", (0.1, 0.9, 0.95, 1.0)),
+    ("orange", (1.0, 0.55, 0.0, 1.0)),
+    ("lime", (0.6, 1.0, 0.1, 1.0)),
+    ("black", (0.05, 0.05, 0.05, 1.0)),  # last: the least visible against the dusk sky
+)
+"""(name, RGBA) of the policies that take turns, in ``eval.rollout``'s order: unlike the group and
+task-marker colours, so that the sphere over the head reads as "who acts", and named, so that a
+legend can be printed."""
 GHOST_RGBA = (0.85, 0.9, 1.0, 0.3)
 DEFAULT_LINK_RGBA = (0.7, 0.7, 0.7, 1.0)
 # One colour per body group, in the order of cfg.env.groups (tab10-like, opaque).
@@ -282,10 +301,67 @@ def add_markers(scn, markers: Sequence[tuple]) -> None:
         scn.ngeom += 1
 
 
+def policy_rgba(i: int) -> tuple[float, ...]:
+    """Colour of policy ``i`` (``POLICY_COLORS``, cycled)."""
+    return POLICY_COLORS[i % len(POLICY_COLORS)][1]
+
+
+def policy_legend(names: Sequence[str]) -> str:
+    """'white = A, magenta = B': which colour of the acting-policy sphere is which run."""
+    return ", ".join(f"{POLICY_COLORS[i % len(POLICY_COLORS)][0]} = {n}" for i, n in enumerate(names))
+
+
+def marker_style(name: str) -> tuple[tuple[float, ...], float]:
+    """(RGBA, sphere radius) of a marker by name: ``acting<i>`` in policy ``i``'s colour, else by
+    ``MARKER_RGBA``/``MARKER_RADII`` with a trailing number ignored (ball0 is a ball), yellow
+    when unknown. The video and the HTML replay both draw with it, so their colours agree."""
+    base = name.rstrip("0123456789")
+    if base == ACTING_PREFIX and base != name:
+        return policy_rgba(int(name[len(base):])), ACTING_RADIUS
+    return MARKER_RGBA.get(base, (0.9, 0.8, 0.1, 0.9)), MARKER_RADII.get(base, MARKER_RADIUS)
+
+
 def marker_list(markers: Mapping[str, np.ndarray]) -> list[tuple[np.ndarray, Sequence[float], float]]:
-    """(segment, colour, sphere radius) of one frame's markers (name -> [2, 3])."""
-    return [(np.asarray(seg), MARKER_RGBA.get(name.rstrip("0123456789"), (0.9, 0.8, 0.1, 0.9)),
-             MARKER_RADII.get(name.rstrip("0123456789"), MARKER_RADIUS)) for name, seg in markers.items()]
+    """(segment, colour, sphere radius) of one frame's markers (name -> [2, 3]). A segment with a
+    non-finite coordinate is left out: the marker is absent on this frame (``acting_markers``)."""
+    out = []
+    for name, seg in markers.items():
+        seg = np.asarray(seg)
+        if np.isfinite(seg).all():
+            out.append((seg, *marker_style(name)))
+    return out
+
+
+def acting_markers(head_pos: np.ndarray, acting: np.ndarray, num_policies: int) -> dict[str, np.ndarray]:
+    """Markers showing which policy acts: ``acting<i>`` -> [T, 2, 3], a point ``ACTING_HEIGHT_M``
+    above the head where policy ``i`` acts and NaN (not drawn) elsewhere; none for one policy, so
+    a single-policy video is unchanged.
+
+    Args:
+      head_pos: [T, 3] world position of the head link.
+      acting: [T] int, the acting policy per frame (``eval.rollout``'s ``acting``).
+      num_policies: how many policies take turns.
+    """
+    if num_policies < 2:
+        return {}
+    p = np.asarray(head_pos, np.float64) + np.array([0.0, 0.0, ACTING_HEIGHT_M])
+    acting = np.asarray(acting)
+    out = {}
+    for i in range(num_policies):
+        q = np.where((acting == i)[:, None], p, np.nan)
+        out[f"{ACTING_PREFIX}{i}"] = np.stack([q, q], axis=1)
+    return out
+
+
+def rollout_markers(learner, ro: Mapping[str, np.ndarray], episode: int, n: int,
+                    num_policies: int = 1) -> dict[str, np.ndarray]:
+    """The first ``n`` frames' markers of one ``eval.rollout`` episode, name -> [n, 2, 3]: the
+    task's goal (``ro["markers"]``) and, when ``num_policies`` > 1, the acting policy's sphere."""
+    out = {k: np.asarray(v)[:n, episode] for k, v in (ro.get("markers") or {}).items()}
+    if num_policies > 1 and ro.get("acting") is not None:
+        head = np.asarray(ro["pos"])[:n, episode, learner.env.character.body_index("head")]
+        out.update(acting_markers(head, np.asarray(ro["acting"])[:n, episode], num_policies))
+    return out
 
 
 def follow_lookat(root_pos: np.ndarray, smoothing: float = 0.9, height: float = 0.9) -> np.ndarray:
@@ -411,13 +487,16 @@ def aligned_reference_qpos(ref_qpos: np.ndarray, sim_qpos0: np.ndarray) -> np.nd
 
 
 def render_rollout(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLike, episode: int = 0,
-                   group: int = 0, width: int = 640, height: int = 480, fps: float | None = None) -> Path:
+                   group: int = 0, width: int = 640, height: int = 480, fps: float | None = None,
+                   policies: Sequence[str] = ()) -> Path:
     """Renders one episode of ``eval.rollout``'s output (alive frames only) with the ghost of
-    ``group``'s reference clip (see the module docstring) and writes it to ``path``."""
+    ``group``'s reference clip (see the module docstring) and writes it to ``path``. ``policies``:
+    names of the runs that took turns (``ro["acting"]`` indexes them); with two or more, a sphere
+    over the head shows the acting one in its ``POLICY_COLORS`` colour (``policy_legend``)."""
     n = int(np.asarray(ro["alive"])[:, episode].sum())
     qpos = np.asarray(ro["qpos"])[:n, episode].astype(np.float64)
     ref = aligned_reference_qpos(reference_qpos(learner, group, n), qpos[0])
-    markers = {k: np.asarray(v)[:n, episode] for k, v in (ro.get("markers") or {}).items()}
+    markers = rollout_markers(learner, ro, episode, n, len(policies))
     frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height, markers=markers,
                          racket=learner.env.cfg.physics.racket)
     return write_video(frames, path, fps or 1.0 / learner.env.dt)

@@ -6,8 +6,10 @@ classic non-module build; its licence header is kept and ``three.LICENSE`` sits 
 inlined into the page together with the poses (float32, base64). The page has play/pause (space),
 a frame slider, a speed selector, a ghost on/off checkbox, a follow-the-character checkbox, a
 floor grid (1 m cells) and a small orbit camera (left drag: rotate, right drag or shift+drag:
-pan, wheel: zoom). The world is MuJoCo's: z up, metres, quaternions wxyz.
-``browser.check_in_browser`` opens a page in headless Chromium.
+pan, wheel: zoom). The world is MuJoCo's: z up, metres, quaternions wxyz. The task's goal
+markers are drawn per frame as the video draws them (``render.marker_style``); after policy
+switching the page names the acting run, in its colour, per frame. ``browser.check_in_browser``
+opens a page in headless Chromium.
 
 ``python -m jaxmotion.eval <run> --html FILE`` writes deterministic rollout episode 0 with the
 first body group's reference clip as the ghost (see ``render``'s module docstring).
@@ -77,7 +79,9 @@ def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequ
                sim_pos: np.ndarray, sim_quat: np.ndarray, ref_pos: np.ndarray | None,
                ref_quat: np.ndarray | None, fps: float, geoms: Sequence[Mapping],
                *, title: str = "jaxmotion replay",
-               legend: Mapping[str, Sequence[float]] | None = None) -> Path:
+               legend: Mapping[str, Sequence[float]] | None = None, markers: Sequence[Mapping] = (),
+               acting: np.ndarray | None = None,
+               policies: Sequence[tuple[str, Sequence[float]]] = ()) -> Path:
     """Writes the replay page.
 
     Args:
@@ -90,6 +94,13 @@ def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequ
         geoms: ``character_geoms(...)`` (or any list of such dicts).
         title: page title and heading.
         legend: optional name -> RGBA swatches (e.g. body group colours).
+        markers: dicts with ``name``, ``seg`` [T, 2, 3] (world segment from, to per frame),
+            ``rgba`` and ``radius``: drawn as ``render.py``'s video does (``marker_style``): a
+            sphere where the segment has zero length, else an arrow; hidden on frames where it is
+            not finite.
+        acting: None, or [T] int: the index into ``policies`` of the policy acting per frame,
+            named on screen with its colour (policy switching).
+        policies: (name, RGBA) of the policies ``acting`` indexes.
 
     Returns:
         The path.
@@ -102,11 +113,23 @@ def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequ
     sq = _check("sim_quat", sim_quat, (nb, 4), T)
     if (ref_pos is None) != (ref_quat is None):
         raise ValueError("give both ref_pos and ref_quat, or neither")
+    marks = []
+    for m in markers:
+        seg = np.asarray(m["seg"], np.float32)
+        if seg.shape != (T, 2, 3):
+            raise ValueError(f"marker {m['name']!r} must be [{T}, 2, 3], got {seg.shape}")
+        marks.append({"name": str(m["name"]), "rgba": [float(x) for x in m["rgba"]],
+                      "radius": float(m["radius"]), "seg": _b64(seg)})
+    if acting is not None:
+        acting = np.asarray(acting).astype(int).tolist()
+        if len(acting) != T or not all(0 <= a < len(policies) for a in acting):
+            raise ValueError(f"acting must be [{T}] indices into {len(policies)} policies")
     data = {
         "title": title, "fps": float(fps), "T": int(T), "nb": nb,
         "bodyNames": list(body_names), "parents": [int(p) for p in parents],
         "geoms": [dict(g) for g in geoms], "legend": {k: list(map(float, v)) for k, v in (legend or {}).items()},
-        "simPos": _b64(sp), "simQuat": _b64(sq), "refPos": None, "refQuat": None,
+        "simPos": _b64(sp), "simQuat": _b64(sq), "refPos": None, "refQuat": None, "markers": marks,
+        "acting": acting, "policies": [{"name": str(n), "rgba": [float(x) for x in c]} for n, c in policies],
     }
     if ref_pos is not None:
         data["refPos"] = _b64(_check("ref_pos", ref_pos, (nb, 3), T))
@@ -143,7 +166,10 @@ _TEMPLATE = """<!DOCTYPE html>
   #legend { position: absolute; right: 10px; top: 8px; }
   #legend span.sw { display: inline-block; width: 10px; height: 10px; margin: 0 4px 0 10px;
                     border-radius: 2px; }
-  #msg { position: absolute; left: 10px; top: 30px; color: #f99; }
+  #acting { position: absolute; left: 10px; top: 30px; font-weight: 600; }
+  #acting span.sw { display: inline-block; width: 12px; height: 12px; margin-right: 6px;
+                    border-radius: 6px; vertical-align: -1px; }
+  #msg { position: absolute; left: 10px; top: 52px; color: #f99; }
   #help { position: absolute; left: 10px; bottom: 40px; opacity: 0.6; font-size: 11px; }
 </style>
 </head>
@@ -151,6 +177,7 @@ _TEMPLATE = """<!DOCTYPE html>
 <div id="view"></div>
 <div id="title"></div>
 <div id="legend"></div>
+<div id="acting"></div>
 <div id="msg"></div>
 <div id="help">drag: rotate &middot; right-drag / shift-drag: pan &middot; wheel: zoom &middot; space: play/pause</div>
 <div id="ui">
@@ -281,6 +308,56 @@ _APP_JS = r"""
   const ref = refPos ? makeCharacter(true) : null;
   if (ref) ref.root.renderOrder = 1;
 
+  // Task markers and the acting policy's sphere, as render.py's video: a zero-length segment is
+  // a sphere, any other an arrow (shaft + cone built along +y, turned onto the segment); a
+  // non-finite one is hidden on that frame.
+  const markers = D.markers.map((m) => {
+    const c = m.rgba;
+    const mat = new THREE.MeshStandardMaterial({color: new THREE.Color(c[0], c[1], c[2]), roughness: 0.5,
+                                                transparent: c[3] < 1, opacity: c[3]});
+    const ball = new THREE.Mesh(new THREE.SphereGeometry(m.radius, 20, 14), mat);
+    const shaft = new THREE.Mesh(new THREE.CylinderGeometry(0.02, 0.02, 1, 12), mat);
+    const tip = new THREE.Mesh(new THREE.ConeGeometry(0.04, 1, 16), mat);
+    const arrow = new THREE.Group();
+    arrow.add(shaft, tip);
+    scene.add(ball, arrow);
+    return {name: m.name, seg: f32(m.seg), ball, arrow, shaft, tip};
+  });
+  const segA = new THREE.Vector3(), segD = new THREE.Vector3();
+  function showMarkers(f) {
+    for (const m of markers) {
+      const S = m.seg, i = f * 6;
+      segA.set(S[i], S[i + 1], S[i + 2]);
+      segD.set(S[i + 3] - S[i], S[i + 4] - S[i + 1], S[i + 5] - S[i + 2]);
+      const len = segD.length();
+      const shown = Number.isFinite(len) && Number.isFinite(segA.lengthSq());
+      m.ball.visible = shown && len < 1e-6;
+      m.arrow.visible = shown && len >= 1e-6;
+      if (m.ball.visible) m.ball.position.copy(segA);
+      if (m.arrow.visible) {
+        const h = Math.min(0.1, 0.5 * len);  // the cone's length
+        m.arrow.position.copy(segA);
+        m.arrow.quaternion.setFromUnitVectors(up, segD.divideScalar(len));
+        m.shaft.scale.set(1, len - h, 1); m.shaft.position.set(0, (len - h) / 2, 0);
+        m.tip.scale.set(1, h, 1); m.tip.position.set(0, len - h / 2, 0);
+      }
+    }
+  }
+  // Policy switching: the acting run's name and colour, per frame.
+  const actingDiv = document.getElementById("acting");
+  let actingShown = -1;
+  function showActing(f) {
+    if (!D.acting || D.policies.length < 2 || D.acting[f] === actingShown) return;
+    actingShown = D.acting[f];
+    const p = D.policies[actingShown], c = p.rgba;
+    actingDiv.textContent = "";
+    const sw = document.createElement("span");
+    sw.className = "sw";
+    sw.style.background = `rgb(${c[0] * 255},${c[1] * 255},${c[2] * 255})`;
+    actingDiv.appendChild(sw);
+    actingDiv.appendChild(document.createTextNode(`acting: ${p.name}`));
+  }
+
   function pose(ch, P, Q, f) {
     for (let b = 0; b < NB; b++) {
       const i3 = (f * NB + b) * 3, i4 = (f * NB + b) * 4;
@@ -359,6 +436,8 @@ _APP_JS = r"""
     frame = f;
     pose(sim, simPos, simQuat, f);
     if (ref) { pose(ref, refPos, refQuat, f); ref.root.visible = ghostBox.checked; }
+    showMarkers(f);
+    showActing(f);
     if (followBox.checked) {
       const i = f * NB * 3, k = 0.15;
       orbit.target.x += k * (simPos[i] - orbit.target.x);
@@ -380,19 +459,25 @@ _APP_JS = r"""
   show(0);
   window.__replay = {ready: true, frames: T,
                      setFrame: (f) => { setPlaying(false); t = f / D.fps; show(f); },
-                     setPlaying, three: {scene, camera, renderer}};
+                     setPlaying, three: {scene, camera, renderer},
+                     acting: () => actingDiv.textContent, markers};
   requestAnimationFrame(loop);
 })();
 """
 
 
 def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLike,
-                       episode: int = 0, group: int = 0, title: str | None = None) -> Path:
+                       episode: int = 0, group: int = 0, title: str | None = None,
+                       policies: Sequence[str] = ()) -> Path:
     """The replay page of one episode of ``eval.rollout``'s output (alive frames only), with
     ``group``'s reference clip as the ghost (``eval.reference_sequence``, moved rigidly in xy +
-    yaw onto the simulation's first root frame as ``eval.world_aligned`` does)."""
+    yaw onto the simulation's first root frame as ``eval.world_aligned`` does) and the task's
+    markers. ``policies``: names of the runs that took turns (``ro["acting"]`` indexes them); with
+    two or more, the page names the acting one per frame and draws the video's sphere over the
+    head in its colour."""
     from jaxmotion.eval import reference_sequence
-    from jaxmotion.render import GROUP_PALETTE, align_pose, align_to_start, learner_group_colors
+    from jaxmotion.render import (GROUP_PALETTE, align_pose, align_to_start, learner_group_colors, marker_style,
+                                  policy_rgba, rollout_markers)
     ch = learner.env.character
     n = int(np.asarray(ro["alive"])[:, episode].sum())
     sp = np.asarray(ro["pos"])[:n, episode]
@@ -404,6 +489,11 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     colors = learner_group_colors(learner)
     legend = {name: GROUP_PALETTE[i % len(GROUP_PALETTE)] for i, name in enumerate(names)}
     ref_name = names[group] if names else "reference"
+    markers = [{"name": k, "seg": v, "rgba": marker_style(k)[0], "radius": marker_style(k)[1]}
+               for k, v in rollout_markers(learner, ro, episode, n, len(policies)).items()]
+    switched = len(policies) > 1 and ro.get("acting") is not None
     return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / learner.env.dt,
                       character_geoms(ch.sword_shield, colors, racket=learner.env.cfg.physics.racket),
-                      title=title or f"jaxmotion replay (ghost: {ref_name} reference)", legend=legend)
+                      title=title or f"jaxmotion replay (ghost: {ref_name} reference)", legend=legend,
+                      markers=markers, acting=np.asarray(ro["acting"])[:n, episode] if switched else None,
+                      policies=[(name, policy_rgba(i)) for i, name in enumerate(policies)] if switched else ())

@@ -109,6 +109,41 @@ def test_task_markers_are_drawn(gl):
     assert green.sum() > 20 and red.sum() > 10
 
 
+def test_acting_sphere_only_with_several_policies():
+    """The acting-policy marker: none for one policy; with several, one sphere per frame over the
+    head in the acting policy's colour (the others are NaN, which ``marker_list`` leaves out)."""
+    head = np.array([[0.0, 0.0, 1.5], [1.0, 0.0, 1.4], [2.0, 0.0, 1.3]])
+    acting = np.array([0, 1, 1])
+    assert RD.acting_markers(head, acting, 1) == {}
+    mk = RD.acting_markers(head, acting, 3)
+    assert set(mk) == {"acting0", "acting1", "acting2"}
+    for t in range(3):
+        (seg, rgba, radius), = RD.marker_list({k: v[t] for k, v in mk.items()})
+        np.testing.assert_allclose(seg, [head[t] + [0, 0, RD.ACTING_HEIGHT_M]] * 2)
+        assert rgba == RD.policy_rgba(acting[t]) and radius == RD.ACTING_RADIUS
+    assert len({RD.policy_rgba(i) for i in range(len(RD.POLICY_COLORS))}) == len(RD.POLICY_COLORS)
+    assert RD.marker_style("ball2") == (RD.MARKER_RGBA.get("ball", (0.9, 0.8, 0.1, 0.9)), RD.MARKER_RADII["ball"])
+    assert RD.policy_legend(["a", "b"]) == f"{RD.POLICY_COLORS[0][0]} = a, {RD.POLICY_COLORS[1][0]} = b"
+
+
+def test_acting_sphere_is_drawn_over_the_head(gl):
+    """Policy 1's magenta sphere shows above the character, where a single-policy frame has none."""
+    _, q = _clip_qpos(2)
+    q = q[:1]
+    head = q[:, :3] + [0.0, 0.0, 0.5]  # roughly the head of the upright test pose
+    size = (2 * W, 2 * H_PX)
+    plain = next(RD.iter_frames(q, None, _colors(), *size, progress=False)).astype(int)
+    drawn = next(RD.iter_frames(q, None, _colors(), *size, progress=False,
+                                markers=RD.acting_markers(head, np.array([1]), 2))).astype(int)
+    changed = np.abs(drawn - plain).sum(-1) > 30
+    r, g, b = (drawn[..., i] for i in range(3))
+    magenta = changed & (r - g > 80) & (b - g > 80)
+    assert magenta.sum() > 20
+    rows = np.nonzero(magenta.any(1))[0]
+    body = np.nonzero((np.abs(plain - plain[0, 0]).sum(-1) > 60).any(1))[0]  # rows the character fills
+    assert rows.mean() < body.mean()  # above the body's middle (image rows grow downwards)
+
+
 def test_render_frames_rejects_bad_shapes(gl):
     _, q = _clip_qpos(2)
     with pytest.raises(ValueError, match="must match"):
@@ -170,6 +205,33 @@ def test_write_html_is_self_contained(tmp_path):
         c, _ = _clip_qpos(4)
         H.write_html(tmp_path / "bad.html", ch.body_names, ch.parents, c.body_pos, c.body_quat,
                      c.body_pos[:2], c.body_quat[:2], 10.0, [])
+
+
+def test_write_html_carries_markers_and_acting_labels(tmp_path):
+    """Markers and the acting policy go into the page's data as given; bad ones are refused."""
+    import base64
+    import json
+    ch = character()
+    c, _ = _clip_qpos(4)
+    seg = np.zeros((4, 2, 3), np.float32)
+    seg[:, 1, 0] = 1.0  # an arrow along x
+    seg[2] = np.nan  # hidden on frame 2
+    args = (ch.body_names, ch.parents, c.body_pos, c.body_quat, None, None, 10.0, [])
+    marks = [{"name": "aim", "seg": seg, "rgba": RD.MARKER_RGBA["aim"], "radius": 0.08}]
+    pols = [("A", RD.policy_rgba(0)), ("B", RD.policy_rgba(1))]
+    p = H.write_html(tmp_path / "m.html", *args, markers=marks, acting=np.array([0, 0, 1, 1]), policies=pols)
+    text = p.read_text()
+    start = text.index('id="replay-data">') + len('id="replay-data">')
+    data = json.loads(text[start:text.index("</script>", start)])
+    (m,) = data["markers"]
+    assert m["name"] == "aim" and m["rgba"] == list(RD.MARKER_RGBA["aim"]) and m["radius"] == 0.08
+    np.testing.assert_array_equal(np.frombuffer(base64.b64decode(m["seg"]), "<f4").reshape(4, 2, 3), seg)
+    assert data["acting"] == [0, 0, 1, 1] and [q["name"] for q in data["policies"]] == ["A", "B"]
+    assert 'id="acting"' in text and "showActing(f)" in text and "showMarkers(f)" in text
+    with pytest.raises(ValueError, match="marker 'aim'"):
+        H.write_html(tmp_path / "bad.html", *args, markers=[dict(marks[0], seg=seg[:3])])
+    with pytest.raises(ValueError, match="acting"):
+        H.write_html(tmp_path / "bad.html", *args, acting=np.array([0, 0, 2, 1]), policies=pols)
 
 
 @pytest.fixture(scope="module")
