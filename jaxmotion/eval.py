@@ -82,13 +82,16 @@ def acting_policy(t: jax.Array, switch_steps: int, num_policies: int) -> jax.Arr
     return (t // switch_steps) % num_policies
 
 
-def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int = 0):
+def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int = 0,
+                actors: tuple[Learner, ...] = ()):
     """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape.
 
     ``ts`` may be a tuple of states whose policies take turns every ``switch_steps`` control
-    steps (policy switching: only the acting parameters change, the env state carries on)."""
+    steps (policy switching: only the acting parameters change, the env state carries on).
+    ``actors`` are the learners whose networks act for those states, one each (default: all
+    ``learner``): runs that share spaces may differ in networks, e.g. one with a meta policy."""
     cache = learner.__dict__.setdefault("_eval_rollout_cache", {})
-    sig = (episodes, steps, deterministic, switch_steps)
+    sig = (episodes, steps, deterministic, switch_steps, tuple(id(a) for a in actors))
     if sig in cache:
         return cache[sig]
     env = learner.env
@@ -104,7 +107,8 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             state, obs, alive = carry
             k, t = xs
             which = acting_policy(t, switch_steps, len(policies))
-            acts = [learner.act(p, obs, None if deterministic else k)[0] for p in policies]
+            acts = [(actors[i] if actors else learner).act(p, obs, None if deterministic else k)[0]
+                    for i, p in enumerate(policies)]
             action = jnp.stack(acts)[which]
             # Incremental learning: the weights w of the meta action (paper Figs. 7-8).
             w = (learner.meta_weights(policies[0], obs) if learner.meta is not None and len(policies) == 1
@@ -132,12 +136,13 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
 
 
 def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes: int, steps: int, seed: int = 0,
-            deterministic: bool = True, switch_steps: int = 0) -> dict[str, np.ndarray]:
+            deterministic: bool = True, switch_steps: int = 0,
+            actors: tuple[Learner, ...] = ()) -> dict[str, np.ndarray]:
     """Runs ``episodes`` environments for ``steps`` control steps with the policy's mean action.
 
     With a tuple of states and ``switch_steps`` > 0, their policies take turns every
     ``switch_steps`` steps on the same environments (they must share observation and action
-    spaces); ``info`` then also holds ``switch`` [T, E], true at the first step of each turn.
+    spaces; ``actors`` gives each its own learner); ``info`` then also holds ``switch`` [T, E], true at the first step of each turn.
 
     Returns numpy arrays: ``pos`` [T+1, E, nb, 3], ``quat`` [T+1, E, nb, 4] (world frame, the
     initial state first), ``qpos`` [T+1, E, nq] (MuJoCo generalised positions, for rendering),
@@ -149,7 +154,8 @@ def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes:
     [T+1, E] int: the index (in ``ts``) of the policy that chooses the action at each recorded
     state (the last: the one whose turn it would be; all zeros without switching).
     """
-    run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0)
+    run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0,
+                      tuple(actors) if isinstance(ts, tuple) else ())
     pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, markers, acting = jax.device_get(
         run(ts, jax.random.PRNGKey(seed)))
     if isinstance(ts, tuple) and switch_steps:
@@ -348,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
     if cfg.env.players == 2:
         from jaxmotion import bout_eval
         return bout_eval.main(args, experiment, cfg, learner, ts)
-    policies, switch_steps = ts, 0
+    policies, switch_steps, actors = ts, 0, ()
     if args.switch:
         others = [load_run(r) for r in args.switch]
         problem = spaces_mismatch([(args.run, learner)] + [(r, o[2]) for r, o in zip(args.switch, others)])
@@ -356,10 +362,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {problem}", file=sys.stderr)
             return 2
         policies = (ts,) + tuple(o[3] for o in others)
+        actors = (learner,) + tuple(o[2] for o in others)  # each run acts through its own networks
         switch_steps = max(int(round(args.switch_every / learner.env.dt)), 1)
     # One rollout serves the metrics and the video / HTML replay (its episode 0).
     ro = rollout(learner, policies, args.episodes or cfg.eval_episodes, cfg.env.episode_steps, args.seed,
-                 switch_steps=switch_steps)
+                 switch_steps=switch_steps, actors=actors)
     res = rollout_metrics(learner, ro)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     if switch_steps:

@@ -134,3 +134,23 @@ def test_meta_policy_with_another_history_length_is_a_clear_error(meta_run):
     cfg = dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, policy_frames=3))
     with jit_enabled(), pytest.raises(ValueError, match="frames of body state"):
         Learner(cfg)
+
+
+def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(incremental):
+    """eval --switch between runs that share spaces but not networks (one has a meta policy):
+    each acts through its own learner; before the first switch it is the incremental run alone."""
+    from jaxmotion import eval as E
+
+    learner, ts = incremental
+    plain_cfg = _cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2),
+                                      GroupConfig(name="lower", motions=WALK)))
+    with jit_enabled():
+        plain = Learner(plain_cfg)
+        plain_ts = plain.init(jax.random.PRNGKey(1))
+        assert E.spaces_mismatch([("inc", learner), ("plain", plain)]) is None
+        ro = E.rollout(learner, (ts, plain_ts), episodes=2, steps=5, switch_steps=2, actors=(learner, plain))
+        alone = E.rollout(learner, ts, episodes=2, steps=5)
+    np.testing.assert_array_equal(ro["acting"][:, 0], [0, 0, 1, 1, 0, 0])
+    assert np.isfinite(ro["qpos"]).all()
+    np.testing.assert_allclose(ro["qpos"][:3], alone["qpos"][:3], atol=1e-5)
+    assert not np.allclose(ro["qpos"][4], alone["qpos"][4], atol=1e-4)
