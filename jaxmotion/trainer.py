@@ -75,6 +75,9 @@ class PPOConfig:
     max_grad_norm: float = 1.0
     actor_lr: float = 5e-6
     critic_lr: float = 1e-4
+    meta_weight_lr: float = 0.0
+    """Incremental learning: Adam's learning rate for the meta-weight head w (0: ``actor_lr``). At
+    5e-6 the sigmoid head stays where it starts (measured: w 0.94 -> 0.94 over 7M samples)."""
     value_coef: float = 0.5
     entropy_coef: float = 0.0
     multi_objective: bool = True
@@ -226,6 +229,16 @@ class Transition:
     info: dict
 
 
+def _param_labels(params: dict, own_meta_weight: bool = False) -> dict:
+    """Optimiser group of every parameter of ``{"actor": ..., "critic": ...}``: its top-level
+    key, except the policy's meta-weight head (``meta_weight``), which is its own group only when
+    the optimiser has one (``PPOConfig.meta_weight_lr``); the labels are a pytree like ``params``."""
+    def label(path, _):
+        keys = [getattr(k, "key", None) for k in path]
+        return "meta_weight" if own_meta_weight and keys[0] == "actor" and "meta_weight" in keys else keys[0]
+    return jax.tree_util.tree_map_with_path(label, params)
+
+
 class Learner:
     """Static pieces of a run (env, networks, optimisers) and its pure update functions."""
 
@@ -270,10 +283,13 @@ class Learner:
                                                            hidden_gain=nc.disc_hidden_gain)
                            for d in self.env.disc_obs_sizes())
         pc = cfg.ppo
+        lrs = {"actor": pc.actor_lr, "critic": pc.critic_lr}
+        if self.meta is not None and pc.meta_weight_lr > 0:
+            lrs["meta_weight"] = pc.meta_weight_lr
         self.optimizer = optax.chain(
             optax.clip_by_global_norm(pc.max_grad_norm),
-            optax.multi_transform({"actor": optax.adam(pc.actor_lr), "critic": optax.adam(pc.critic_lr)},
-                                  {"actor": "actor", "critic": "critic"}))
+            optax.multi_transform({k: optax.adam(v) for k, v in lrs.items()},
+                                  lambda p: _param_labels(p, "meta_weight" in lrs)))
         self.disc_optimizer = optax.adam(cfg.disc.lr)
         self.hard_negatives = cfg.hard_negatives_every > 0
         if self.hard_negatives and cfg.env.task.name != "track":

@@ -154,3 +154,21 @@ def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(in
     assert np.isfinite(ro["qpos"]).all()
     np.testing.assert_allclose(ro["qpos"][:3], alone["qpos"][:3], atol=1e-5)
     assert not np.allclose(ro["qpos"][4], alone["qpos"][4], atol=1e-4)
+
+
+def test_meta_weight_head_gets_its_own_learning_rate(incremental, meta_run):
+    """ppo.meta_weight_lr: Adam's first step moves the w head by its own rate, the rest of the
+    policy by actor_lr and the critic by critic_lr (each step of Adam is about its rate)."""
+    learner, ts = incremental
+    cfg = dataclasses.replace(learner.cfg, ppo=dataclasses.replace(learner.cfg.ppo, meta_weight_lr=1e-2))
+    params = {"actor": ts.policy_params, "critic": ts.critic_params}
+    grads = jax.tree.map(jnp.ones_like, params)
+    for lr_w, lrn in ((1e-2, Learner(cfg)), (learner.cfg.ppo.actor_lr, learner)):
+        updates, _ = lrn.optimizer.update(grads, lrn.optimizer.init(params), params)
+        actor = updates["actor"]["params"]
+        for name, leaf in actor.items():
+            want = lr_w if name == "meta_weight" else learner.cfg.ppo.actor_lr
+            for x in jax.tree.leaves(leaf):
+                np.testing.assert_allclose(x, -want, rtol=1e-3)
+        for x in jax.tree.leaves(updates["critic"]):
+            np.testing.assert_allclose(x, -learner.cfg.ppo.critic_lr, rtol=1e-3)
