@@ -229,13 +229,14 @@ class Transition:
     info: dict
 
 
-def _param_labels(params: dict, own_meta_weight: bool = False) -> dict:
+def _param_labels(params: dict) -> dict:
     """Optimiser group of every parameter of ``{"actor": ..., "critic": ...}``: its top-level
-    key, except the policy's meta-weight head (``meta_weight``), which is its own group only when
-    the optimiser has one (``PPOConfig.meta_weight_lr``); the labels are a pytree like ``params``."""
+    key, except the policy's meta-weight head (``meta_weight``), its own group (used only with
+    ``PPOConfig.meta_weight_lr``; otherwise the optimiser keeps the two groups it always had, so
+    existing runs' optimiser state keeps its structure)."""
     def label(path, _):
         keys = [getattr(k, "key", None) for k in path]
-        return "meta_weight" if own_meta_weight and keys[0] == "actor" and "meta_weight" in keys else keys[0]
+        return "meta_weight" if keys[0] == "actor" and "meta_weight" in keys else keys[0]
     return jax.tree_util.tree_map_with_path(label, params)
 
 
@@ -289,7 +290,7 @@ class Learner:
         self.optimizer = optax.chain(
             optax.clip_by_global_norm(pc.max_grad_norm),
             optax.multi_transform({k: optax.adam(v) for k, v in lrs.items()},
-                                  lambda p: _param_labels(p, "meta_weight" in lrs)))
+                                  _param_labels if "meta_weight" in lrs else {"actor": "actor", "critic": "critic"}))
         self.disc_optimizer = optax.adam(cfg.disc.lr)
         self.hard_negatives = cfg.hard_negatives_every > 0
         if self.hard_negatives and cfg.env.task.name != "track":
