@@ -229,17 +229,6 @@ class Transition:
     info: dict
 
 
-def _param_labels(params: dict) -> dict:
-    """Optimiser group of every parameter of ``{"actor": ..., "critic": ...}``: its top-level
-    key, except the policy's meta-weight head (``meta_weight``), its own group (used only with
-    ``PPOConfig.meta_weight_lr``; otherwise the optimiser keeps the two groups it always had, so
-    existing runs' optimiser state keeps its structure)."""
-    def label(path, _):
-        keys = [getattr(k, "key", None) for k in path]
-        return "meta_weight" if keys[0] == "actor" and "meta_weight" in keys else keys[0]
-    return jax.tree_util.tree_map_with_path(label, params)
-
-
 class Learner:
     """Static pieces of a run (env, networks, optimisers) and its pure update functions."""
 
@@ -284,13 +273,8 @@ class Learner:
                                                            hidden_gain=nc.disc_hidden_gain)
                            for d in self.env.disc_obs_sizes())
         pc = cfg.ppo
-        lrs = {"actor": pc.actor_lr, "critic": pc.critic_lr}
-        if self.meta is not None and pc.meta_weight_lr > 0:
-            lrs["meta_weight"] = pc.meta_weight_lr
-        self.optimizer = optax.chain(
-            optax.clip_by_global_norm(pc.max_grad_norm),
-            optax.multi_transform({k: optax.adam(v) for k, v in lrs.items()},
-                                  _param_labels if "meta_weight" in lrs else {"actor": "actor", "critic": "critic"}))
+        self.optimizer = PPO.make_optimizer(pc.max_grad_norm, pc.actor_lr, pc.critic_lr,
+                                            pc.meta_weight_lr if self.meta is not None else 0.0)
         self.disc_optimizer = optax.adam(cfg.disc.lr)
         self.hard_negatives = cfg.hard_negatives_every > 0
         if self.hard_negatives and cfg.env.task.name != "track":

@@ -22,6 +22,7 @@ from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
+import optax
 from flax import struct
 
 from jaxmotion.algos import popart
@@ -199,3 +200,25 @@ def ppo_losses(
     }
     metrics = jax.tree.map(jax.lax.stop_gradient, metrics)
     return loss, metrics
+
+
+def _param_labels(params: dict) -> dict:
+    """Optimiser group of every parameter of ``{"actor": ..., "critic": ...}``: its top-level key,
+    except the policy's meta-weight head (``meta_weight``, incremental learning), its own group."""
+    def label(path, _):
+        keys = [getattr(k, "key", None) for k in path]
+        return "meta_weight" if keys[0] == "actor" and "meta_weight" in keys else keys[0]
+    return jax.tree_util.tree_map_with_path(label, params)
+
+
+def make_optimizer(max_grad_norm: float, actor_lr: float, critic_lr: float,
+                   meta_weight_lr: float = 0.0) -> optax.GradientTransformation:
+    """Global-norm clipping, then Adam per group of ``{"actor": ..., "critic": ...}``. With
+    ``meta_weight_lr`` > 0 the meta-weight head has its own rate; without it the optimiser keeps
+    the two prefix-labelled groups it always had, so existing checkpoints keep their structure."""
+    lrs = {"actor": actor_lr, "critic": critic_lr}
+    labels = {"actor": "actor", "critic": "critic"}
+    if meta_weight_lr > 0:
+        lrs["meta_weight"], labels = meta_weight_lr, _param_labels
+    return optax.chain(optax.clip_by_global_norm(max_grad_norm),
+                       optax.multi_transform({k: optax.adam(v) for k, v in lrs.items()}, labels))
