@@ -164,6 +164,32 @@ def test_resume_reproduces_uninterrupted_run(runs):
     assert ckpt.read_config(b.run_dir, TrainConfig) == (EXPERIMENT, cfg)
 
 
+@pytest.mark.slow
+def test_slim_copy_restores_everything_but_the_environments(runs, tmp_path):
+    """``checkpoint slim``: the copy's checkpoint holds no per-environment leaves; restored into a
+    fresh template it equals the run's final state everywhere else (networks, optimisers,
+    normalisers, PopArt, RNG, counters) and keeps the template's freshly reset environments."""
+    cfg, a = runs["cfg"], runs["a"]
+    with jit_enabled():
+        like = Learner(cfg).init(jax.random.PRNGKey(cfg.seed + 1))
+        step = ckpt.slim(a.run_dir, tmp_path / "slim", like)
+        assert step == cfg.iterations
+        mgr = ckpt.manager(tmp_path / "slim")
+        restored, got = ckpt.restore(mgr, like)
+        mgr.close()
+    assert got == step
+    assert (tmp_path / "slim" / "config.json").read_text() == (a.run_dir / "config.json").read_text()
+    assert (tmp_path / "slim" / "metrics.jsonl").exists()
+    final, template = dict(_leaves(a.state)), dict(_leaves(like))
+    for k, x in _leaves(restored):
+        want = template[k] if k.startswith(ckpt.PER_ENV) else final[k]
+        np.testing.assert_array_equal(x, want, err_msg=k)
+    assert any(k.startswith(".env_state") for k in final)
+    assert any(not np.array_equal(final[k], template[k]) for k in final if k.startswith(".env_state"))
+    size = lambda d: sum(f.stat().st_size for f in d.rglob("*") if f.is_file())
+    assert size(tmp_path / "slim" / "checkpoints") < size(a.run_dir / "checkpoints" / str(step))
+
+
 TWO_DEVICE_SCRIPT = textwrap.dedent("""
     import json, sys
     from pathlib import Path
