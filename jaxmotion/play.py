@@ -47,9 +47,14 @@ class Player:
     acting policy. Everything the viewer shows comes from ``tick``'s return value, so the logic
     is testable without a display."""
 
-    def __init__(self, learner, policies: Sequence, seed: int = 0):
+    def __init__(self, learner, policies: Sequence, seed: int = 0, actors: Sequence = ()):
+        """``actors``: the learner whose networks act for each policy (default: ``learner`` for
+        all); runs that share spaces may differ in networks, e.g. one has a meta policy."""
         if not policies:
             raise ValueError("no policies to play")
+        actors = tuple(actors) or (learner,) * len(policies)
+        if len(actors) != len(policies):
+            raise ValueError(f"{len(policies)} policies but {len(actors)} learners to act for them")
         self.learner, self.env = learner, learner.env
         self.policies = tuple(policies)
         self.active = 0
@@ -62,15 +67,18 @@ class Player:
         limit = env.cfg.episode_steps - 2
         last = lambda s: jax.tree.map(lambda x: x[-1], s.hist)
 
-        def step(ts, state, move, turn):
-            state = state.replace(goal=task.steer(state.goal, last(state), move, turn),
-                                  steps=jnp.minimum(state.steps, limit))  # no time limit in play
-            obs = env.policy_obs(state)
-            action = learner.act(ts, obs[None], None)[0][0]
-            state, out = env.step(state, action)
-            return state, state.data.qpos, task.markers(state.goal, last(state)), out.terminated
+        def make_step(actor):
+            def step(ts, state, move, turn):
+                state = state.replace(goal=task.steer(state.goal, last(state), move, turn),
+                                      steps=jnp.minimum(state.steps, limit))  # no time limit in play
+                obs = env.policy_obs(state)
+                action = actor.act(ts, obs[None], None)[0][0]
+                state, out = env.step(state, action)
+                return state, state.data.qpos, task.markers(state.goal, last(state)), out.terminated
+            return jax.jit(step)
 
-        self._step = jax.jit(step)
+        steps = {id(a): make_step(a) for a in actors}  # one program per distinct learner
+        self._steps = tuple(steps[id(a)] for a in actors)
         self._reset = jax.jit(lambda k: env.reset(k)[0])
         self.state = self._new_state()
 
@@ -98,7 +106,8 @@ class Player:
             self.restarts += 1
         move, turn = jnp.asarray(self._move), jnp.asarray(self._turn, jnp.float32)
         self._move[:], self._turn = 0.0, 0.0
-        self.state, qpos, markers, fell = self._step(self.policies[self.active], self.state, move, turn)
+        step = self._steps[self.active]
+        self.state, qpos, markers, fell = step(self.policies[self.active], self.state, move, turn)
         if bool(fell):  # the env restarted it; count it
             self.restarts += 1
         return np.asarray(qpos), {k: np.asarray(v) for k, v in markers.items()}, bool(fell)
@@ -162,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
-    player = Player(learner, [ts for *_, ts in loaded], seed=args.seed)
+    player = Player(learner, [ts for *_, ts in loaded], seed=args.seed, actors=[o[2] for o in loaded])
     try:
         _view(player, " | ".join(e for e, *_ in loaded))
     except Exception as e:  # GL / window-system failures: one clear line, not a traceback

@@ -156,6 +156,31 @@ def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(in
     assert not np.allclose(ro["qpos"][4], alone["qpos"][4], atol=1e-4)
 
 
+def test_play_acts_each_run_through_its_own_learner(incremental):
+    """``python -m jaxmotion.play inc plain``: keys switch between an incremental run (meta policy)
+    and a plain one; each acts through its own networks, from the same character state."""
+    from jaxmotion import play
+
+    learner, ts = incremental
+    plain = Learner(_cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2),
+                                          GroupConfig(name="lower", motions=WALK))))
+    with jit_enabled():
+        plain_ts = plain.init(jax.random.PRNGKey(1))
+        p = play.Player(learner, [ts, plain_ts], seed=0, actors=[learner, plain])
+        before = p.state
+        qpos_inc, _, _ = p.tick()
+        p.key(ord("2"))
+        from_before = p._steps[1](plain_ts, before, jnp.zeros(2), jnp.zeros(()))[1]
+        mid = p.state
+        qpos_plain, _, _ = p.tick()
+        want = p._steps[1](plain_ts, mid, jnp.zeros(2), jnp.zeros(()))[1]
+    assert p._steps[0] is not p._steps[1]
+    np.testing.assert_allclose(qpos_plain, want, atol=1e-6)
+    assert not np.allclose(qpos_inc, from_before, atol=1e-4)  # the two runs act differently
+    with pytest.raises(ValueError, match="learners"):
+        play.Player(learner, [ts, plain_ts], actors=[learner])
+
+
 def test_meta_weight_head_gets_its_own_learning_rate(incremental, meta_run):
     """ppo.meta_weight_lr: Adam's first step moves the w head by its own rate, the rest of the
     policy by actor_lr and the critic by critic_lr (each step of Adam is about its rate)."""

@@ -52,8 +52,8 @@ def test_keys_switch_policies_and_keep_the_state(aim_player):
         # The switch only changes the acting parameters: the step from the same state equals
         # what policy 2 does from it, and differs from what policy 1 does.
         qpos_b, _, _ = p.tick()
-        ref_b = p._step(p.policies[1], before, jnp.zeros(2), jnp.zeros(()))[1]
-        ref_a = p._step(p.policies[0], before, jnp.zeros(2), jnp.zeros(()))[1]
+        ref_b = p._steps[1](p.policies[1], before, jnp.zeros(2), jnp.zeros(()))[1]
+        ref_a = p._steps[0](p.policies[0], before, jnp.zeros(2), jnp.zeros(()))[1]
     np.testing.assert_allclose(qpos_b, ref_b, atol=1e-6)
     assert not np.allclose(qpos_b, ref_a, atol=1e-4)
 
