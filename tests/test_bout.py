@@ -351,13 +351,13 @@ def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
             np.testing.assert_array_equal(out_sw.terminated[:, ::-1], out.terminated)
 
 
-def _learner(sport: str = "boxing"):
+def _learner(sport: str = "boxing", **kw):
     from jaxmotion.trainer import Learner, NetConfig, PPOConfig, TrainConfig
     env = _env(sport, task=TaskConfig(name=sport, boxing=dataclasses.replace(
         TaskConfig().boxing, start_distance=(0.7, 0.9))), episode_steps=30)
     cfg = TrainConfig(env=env.cfg, net=NetConfig(policy_hidden=(16,), critic_hidden=(16,)),
                       ppo=PPOConfig(num_envs=2, horizon=4, minibatch_size=8, multi_objective=False,
-                                    terminate_reward=None, absorbing_termination=False))
+                                    terminate_reward=None, absorbing_termination=False), **kw)
     return Learner(cfg, env=env)
 
 
@@ -382,6 +382,45 @@ def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
     assert ro["qpos"].shape[:2] == (30, 8) and np.all(np.isfinite(ro["qpos"]))
     page = write_bout_html(learner, ro, tmp_path / "bout.html").read_text()
     assert "player 0" in page and "player 1" in page
+
+
+def test_self_play_on_a_frozen_imitation_policy(tmp_path, data_dir):
+    """``boxing/selfplay_meta``: both players act through the shared incremental policy on a frozen
+    one-character imitation policy (``policy_frames=1``, the bout's body state): each player's
+    meta action is that policy's on the player's own body observation, the policy starts as
+    w * a_meta, and an iteration leaves the imitation policy as it was."""
+    from jaxmotion import checkpoint as ckpt
+    from jaxmotion.envs.humanoid import GroupConfig
+    from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    walk = ("compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",)
+    icfg = TrainConfig(env=EnvConfig(init_motions=walk, groups=(GroupConfig(name="full", motions=walk),),
+                                     policy_frames=1, episode_steps=20),
+                       net=NetConfig(policy_hidden=(16,), critic_hidden=(16,), disc_hidden=(8,), disc_heads=2),
+                       ppo=PPOConfig(num_envs=4, horizon=2, minibatch_size=8), disc=DiscConfig(minibatch_size=8))
+    with jit_enabled():
+        meta_ts = Learner(icfg).init(jax.random.PRNGKey(3))
+    mean = meta_ts.policy_params["params"]["mean"]  # actions far from zero, so that following shows
+    meta_ts = meta_ts.replace(policy_params={"params": {**meta_ts.policy_params["params"],
+                                                        "mean": {**mean, "kernel": 20.0 * mean["kernel"]}}})
+    run = tmp_path / "imitate" / "boxing" / "20260101-000000"
+    ckpt.write_config(run, "imitate/boxing", icfg)
+    mgr = ckpt.manager(run)
+    ckpt.save(mgr, 1, meta_ts)
+    mgr.close()
+    learner = _learner(meta=str(run.parent))
+    body = learner.env.body_obs_size
+    with jit_enabled():
+        ts = learner.init(jax.random.PRNGKey(0))
+        a, _, a_meta = jax.jit(lambda o: learner.act(ts, o, None))(ts.obs)
+        ref = jax.jit(lambda o: learner.meta.learner.act(ts.meta, o, None)[0])(ts.obs[..., :body])
+        new, m = jax.jit(learner.iteration)(ts)
+    assert a_meta.shape == (2, 2, learner.env.action_size)
+    np.testing.assert_allclose(a_meta, ref, atol=1e-6)
+    assert float(np.abs(a_meta).mean()) > 0.3
+    np.testing.assert_allclose(a, 1 / (1 + np.exp(-3.0)) * a_meta, atol=0.02)
+    assert all(np.all(np.isfinite(np.asarray(v))) for v in jax.tree.leaves(m))
+    for x, y in zip(jax.tree.leaves(new.meta), jax.tree.leaves(ts.meta)):
+        np.testing.assert_array_equal(x, y)
 
 
 def test_two_player_config_errors_are_clear():
