@@ -6,7 +6,11 @@ starting at 0.95 with its own learning rate 1e-3. So the boxers start as the imi
 within a second (`boxing/selfplay`). Same ring, rules, ω and PPO settings as `boxing/selfplay`.
 
 Train the imitation policy first (`make train EXP=imitate/boxing`); `meta` takes its newest run,
-or name one: `make train EXP=boxing/selfplay_meta ARGS="meta=runs/imitate/boxing/<stamp>"`."""
+or name one: `make train EXP=boxing/selfplay_meta ARGS="meta=runs/imitate/boxing/<stamp>"`.
+
+Measured on the 2-core CPU (6000 iterations, 3.07M player-steps, 29 min): r_close 0.16 -> 0.45,
+distance 1.77 -> 1.1 m, hits in 1% -> 5-8% of steps; eval: bouts of 2.3 s, each ended by a fall,
+26 of 32 with damage (README, Two players)."""
 
 import dataclasses
 
