@@ -33,112 +33,11 @@ from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
+from jaxmotion.hparams import DiscConfig, NetConfig, PPOConfig  # noqa: F401  (re-exported)
 from jaxmotion.meta import Meta, PolicyState, resolve_run
 from jaxmotion.nets import networks as nets
+from jaxmotion.pool import OpponentPool
 from jaxmotion.tasks import combine_weights
-
-
-@dataclasses.dataclass(frozen=True)
-class NetConfig:
-    """Network sizes (defaults: the authors' code, minus the GRU)."""
-
-    policy_hidden: tuple[int, ...] = (1024, 512)
-    critic_hidden: tuple[int, ...] = (1024, 512)
-    activation: str = "relu6"
-    state_dependent_std: bool = True
-    init_log_std: float = -3.0
-    """Initial log σ of the Gaussian policy (the paper's code starts at -3)."""
-    critic_hidden_init: float = 0.0
-    """0: the critic's hidden weights start at PyTorch's default U(+-1/sqrt(fan_in)), like the
-    policy's; > 0: at U(+-critic_hidden_init) (the authors' code: 1e-4, as its heads)."""
-    disc_hidden: tuple[int, ...] = (256, 128)
-    disc_hidden_gain: float = 1.0
-    """Orthogonal gain of the discriminators' hidden layers (the authors' code: sqrt(2))."""
-    disc_heads: int = 32
-    """Heads per discriminator ensemble (N in the paper)."""
-    meta_weight_bias: float = 3.0
-    """Incremental learning: initial bias of the sigmoid meta-weight head (3: w = 0.95, so the
-    new policy starts as the meta policy; ``meta.py``)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class PPOConfig:
-    """PPO with multiple objectives (defaults: the paper's experiments)."""
-
-    num_envs: int = 512
-    horizon: int = 8
-    minibatch_size: int = 256
-    epochs: int = 5
-    gamma: float = 0.95
-    lam: float = 0.95
-    clip_eps: float = 0.2
-    max_grad_norm: float = 1.0
-    actor_lr: float = 5e-6
-    critic_lr: float = 1e-4
-    meta_weight_lr: float = 0.0
-    """Incremental learning: Adam's learning rate for the meta-weight head w (0: ``actor_lr``). At
-    5e-6 the sigmoid head stays where it starts (measured: w 0.94 -> 0.94 over 7M samples)."""
-    value_coef: float = 0.5
-    entropy_coef: float = 0.0
-    multi_objective: bool = True
-    """False: the w/o-MO ablation (rewards summed with ω, one critic head)."""
-    popart: bool = True
-    """False: the w/o-PopArt ablation (critic trained on raw returns)."""
-    popart_beta: float = 0.1
-    objective_weights: tuple[float, ...] = ()
-    """ω per objective (groups, then the task's rewards), renormalised to sum to 1; empty: the
-    groups' ``weight`` and the task's weights by the authors' rule (``tasks.combine_weights``)."""
-    per_objective_clip: bool = False
-    """True: clip each ω_k Ā_k term separately (the authors' code) instead of Eq. 9."""
-    terminate_reward: float | None = -2.0
-    """Reward of every objective on a terminating step, and (absorbing) on every step after it.
-    It must lie below the lowest reward an objective can pay (a discriminator's: -1 with the
-    hinge loss, 0 with lsgan or bce), or a policy whose rewards sit at that floor loses nothing
-    by falling: with -1, a saturated hinge discriminator made the fall's value -1/(1-gamma) = -20
-    equal to staying up (measured). The authors' code uses -1 with a value of 0 after the fall.
-    None: the step keeps its rewards (a task that pays its own penalties, as the two-player
-    sports do)."""
-    absorbing_termination: bool = True
-    """True: a fall is an absorbing state that keeps paying ``terminate_reward`` (its value is
-    ``terminate_reward / (1 - gamma)``), so with ``terminate_reward`` below every reward a fall
-    always lowers the return. False: the authors' code (value 0 after the fall), which, with
-    clipped discriminator rewards that sit near -1 early in training, makes an early fall the
-    better deal; measured here, a policy trained that way learned to fall sooner."""
-    obs_clip: float = 5.0
-
-
-@dataclasses.dataclass(frozen=True)
-class DiscConfig:
-    """Discriminator ensembles: a prediction loss (``loss``) with gradient penalty.
-
-    ``loss`` picks the discriminator's loss and the reward that goes with it (``algos.disc``),
-    applied per head and averaged over heads; the gradient penalty (``gp_mode``, ``gp_weight``)
-    is the same for all three:
-
-    * 'hinge' (default): the paper's hinge loss (Xu et al. 2023, Eq. 2), reward the
-      clipped logit, in [-1, 1] (Eq. 5).
-    * 'lsgan': AMP's least-squares GAN (Peng et al. 2021, the paper), targets +1 / -1,
-      reward max(0, 1 - (D - 1)^2 / 4), in [0, 1].
-    * 'bce': binary cross-entropy on logits, as in AMP's isaacgym code that PHC (ZhengyiLuo/PHC)
-      inherits; reward -log max(1 - sigmoid(D), 1e-4), in [0, log 1e4 = 9.21].
-    """
-
-    lr: float = 1e-5
-    gp_weight: float = 10.0
-    gp_mode: str = "sum_heads"
-    """'sum_heads' (the authors' code, default) or 'per_head' (paper Eq. 2). Measured on
-    chest_open+squat: with 'per_head', 95% of the upper-body policy samples sat at the reward
-    floor of -1 after 120 iterations (lower body 75%), a saturated discriminator that gives the
-    policy no gradient; with 'sum_heads' 0%. Per head is also the costlier: its 32 input
-    gradients come from ``networks.head_input_grad_sq_norms`` (the chain rule as matrix
-    products)."""
-    minibatch_size: int = 256
-    loss: str = "hinge"
-    """'hinge' (default), 'lsgan' or 'bce' (class docstring); it also sets the reward floor that
-    ``ppo.terminate_reward`` must lie below (-1, 0, 0)."""
-
-    def __post_init__(self):
-        D.check_loss(self.loss)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,6 +67,12 @@ class TrainConfig:
     """Two-player scenes: 'shared' (one policy, critic and normaliser act for both players, each
     player a sample of its own) or 'separate' (each player has its own policy, critic, PopArt,
     observation statistics and optimiser, trained on its own transitions only)."""
+    opponent_pool: int = 0
+    """Two-player self-play: snapshots of the shared policy kept as opponents (``pool.py``); 0: none."""
+    opponent_share: float = 0.25
+    """With a pool: the share of bouts whose player 1 is a pool member (not trained on)."""
+    opponent_every: int = 100
+    """With a pool: iterations between snapshots (the oldest replaced once the pool is full)."""
     hard_negatives_every: int = 0
     """Tracking: every this many chunks, run every clip once from t = 0 and reset to the clips it
     failed more often (``track_eval.hard_negative_update``); 0: never."""
@@ -200,6 +105,8 @@ class TrainState:
     """Hard-negative mining: cumulative failures [C] of every tracked clip, else None."""
     clip_weights: Any = None
     """Hard-negative mining: the reset's clip probabilities [C] (``init_lib.clip_weight`` scaled), else None."""
+    pool: Any = None
+    """Self-play's opponent pool (``pool.PoolState``), else None."""
 
 
 AGENT_FIELDS = ("policy_params", "critic_params", "opt_state", "obs_norm", "popart")
@@ -246,6 +153,10 @@ class Learner:
         a leading player axis (``AGENT_FIELDS``)."""
         if self.separate and (self.players < 2 or cfg.meta):
             raise ValueError("player_policies=separate needs a two-player scene (env.players=2) and no meta policy")
+        if cfg.opponent_pool and self.separate:
+            raise ValueError("opponent_pool needs player_policies=shared")
+        self.pool = OpponentPool(cfg.opponent_pool, cfg.opponent_share, cfg.opponent_every, cfg.ppo.num_envs,
+                                 self.players) if cfg.opponent_pool > 0 else None
         task = self.env.task
         self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)
         n_obj = len(self.objective_names)
@@ -302,7 +213,11 @@ class Learner:
     def _check_batch(self):
         pc = self.cfg.ppo
         n = pc.num_envs * pc.horizon * self.players
-        if n % pc.minibatch_size or (self.discs and n % self.cfg.disc.minibatch_size):
+        if self.pool is not None:  # the pool's samples are left out; minibatches drop the remainder
+            n = pc.horizon * self.pool.num_learner_samples
+            if n < max(pc.minibatch_size, self.cfg.disc.minibatch_size if self.discs else 0):
+                raise ValueError(f"the learner's {n} samples per iteration are fewer than a minibatch")
+        elif n % pc.minibatch_size or (self.discs and n % self.cfg.disc.minibatch_size):
             raise ValueError(f"num_envs*horizon*players ({n}) must be a multiple of the minibatch sizes "
                              f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})")
 
@@ -340,7 +255,8 @@ class Learner:
             meta=self.meta.state if self.meta else None,
             clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
             # A copy: the chunk donates the state, which must not delete the library's own array.
-            clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None)
+            clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None,
+            pool=self.pool.init(agent["policy_params"], agent["obs_norm"], rng) if self.pool else None)
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
@@ -414,19 +330,23 @@ class Learner:
                                                            ts.clip_weights)
 
         def step(carry, key):
-            env_state, obs = carry
+            env_state, obs, opp = carry
             action, logp, a_meta = self.act(ts, obs, key)
+            if self.pool is not None:  # player 1 of the pool bouts: an earlier self
+                action = self.pool.act(self._act, opp, ts.meta, obs, action, jax.random.fold_in(key, 2))
             env_state, out = batch_step(env_state, action, pool)
+            if self.pool is not None:
+                opp = self.pool.redraw(opp, jnp.any(out.terminated | out.truncated, -1), jax.random.fold_in(key, 3))
             tr = Transition(obs=obs, action=action, log_prob=logp, meta_action=a_meta, final_obs=out.final_obs,
                             disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
                             unstable=out.unstable, task_reward=out.task_reward, info=out.info)
-            return (env_state, out.obs), tr
+            return (env_state, out.obs, opp), tr
 
         keys = jax.random.split(key, self.cfg.ppo.horizon)
-        (env_state, obs), traj = jax.lax.scan(step, (ts.env_state, ts.obs), keys)
+        (env_state, obs, opp), traj = jax.lax.scan(step, (ts.env_state, ts.obs, ts.pool), keys)
         if self.players > 1 and not self.separate:  # every player is a sample of the shared policy
             traj = players_as_samples(traj)
-        return ts.replace(env_state=env_state, obs=obs, rng=rng), traj
+        return ts.replace(env_state=env_state, obs=obs, rng=rng, pool=opp), traj
 
     # ---- discriminators --------------------------------------------------------------------
     def _update_disc(self, net, params, opt_state, norm, pol, ref, rng):
@@ -436,7 +356,7 @@ class Learner:
         k_perm, k_gp = jax.random.split(rng)
         n = pol.shape[0]
         nmb = n // dc.minibatch_size
-        perm = jax.random.permutation(k_perm, n)
+        perm = jax.random.permutation(k_perm, n)[:nmb * dc.minibatch_size]
         mb = lambda x: N.normalize(norm, x[perm], None).reshape(nmb, dc.minibatch_size, -1)
 
         def body(carry, xs):
@@ -530,7 +450,7 @@ class Learner:
             return (optax.apply_updates(params, updates), opt_state), m
 
         def epoch(carry, key):
-            perm = jax.random.permutation(key, n)
+            perm = jax.random.permutation(key, n)[:nmb * pc.minibatch_size]  # all of it, but with a pool
             mbs = jax.tree.map(lambda x: x[perm].reshape((nmb, pc.minibatch_size) + x.shape[1:]), batch)
             return jax.lax.scan(sgd_step, carry, mbs)
 
@@ -567,8 +487,13 @@ class Learner:
 
     def iteration(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, dict]:
         ts, traj = self.rollout(ts, mesh)
+        pool_metrics = {}
+        if self.pool is not None:
+            pool_metrics = self.pool.metrics(traj, self.env.task.reward_names, ts.pool)
+            traj = self.pool.learner_samples(traj)
         flat = players_as_samples(traj) if self.separate else traj
         ts, rewards, metrics = self.disc_step(ts, flat)
+        metrics.update(pool_metrics)
         rewards = jnp.concatenate([rewards, flat.task_reward], -1)
         for name, r in zip(self.env.task.reward_names, jnp.moveaxis(flat.task_reward, -1, 0)):
             metrics[f"reward/{name}"] = jnp.mean(r)
@@ -587,6 +512,8 @@ class Learner:
         metrics["env/terminated"] = jnp.mean(traj.terminated)
         metrics["env/unstable"] = jnp.mean(traj.unstable)
         metrics["env/episodes_done"] = jnp.sum(done)
+        if self.pool is not None:
+            ts = ts.replace(pool=self.pool.snapshot(ts.pool, ts.policy_params, obs_norm, ts.iteration + 1))
         return ts.replace(obs_norm=obs_norm, iteration=ts.iteration + 1), metrics
 
 

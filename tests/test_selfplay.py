@@ -164,3 +164,85 @@ def test_separate_policies_need_two_players():
     with pytest.raises(ValueError, match="player_policies must be"):
         _learner("both")
     assert dataclasses.replace(cfg, player_policies="shared").player_policies == "shared"
+
+
+# ---- the opponent pool (``pool.py``) ---------------------------------------------------------
+
+def _pool_learner(**kw) -> Learner:
+    learner = _learner("shared")
+    cfg = dataclasses.replace(learner.cfg, **dict(dict(opponent_pool=2, opponent_share=0.25, opponent_every=2), **kw))
+    return Learner(cfg, env=Duel(cfg.env))
+
+
+def test_pool_bouts_have_player_1_acted_by_their_pool_member():
+    learner = _pool_learner()
+    pool = learner.pool
+    assert pool.bouts == 4  # a quarter of 16 bouts
+    ts = learner.init(jax.random.PRNGKey(0))
+    other = learner.policy.init(jax.random.PRNGKey(7))  # member 1: another policy than member 0
+    ps = ts.pool.replace(policy_params=jax.tree.map(lambda s, x: s.at[1].set(x), ts.pool.policy_params, other),
+                         opponent=jnp.array([0, 1, 1, 0], jnp.int32))
+    obs = jnp.tile(jnp.linspace(-0.5, 0.5, 16)[:, None, None], (1, 2, 1))
+    a, _, _ = learner.act(ts, obs, None)
+    mixed = pool.act(learner._act, ps, None, obs, a, None)
+    member = [jax.tree.map(lambda x: x[k], (ps.policy_params, ps.obs_norm)) for k in range(2)]
+    for b, k in enumerate([0, 1, 1, 0]):
+        sub = ts.replace(policy_params=member[k][0], obs_norm=member[k][1])
+        want, _, _ = learner._act(sub, obs[b:b + 1, 1], None)
+        np.testing.assert_allclose(mixed[b, 1], want[0], rtol=1e-6, atol=1e-6)
+    np.testing.assert_array_equal(mixed[:, 0], a[:, 0])  # the learner's side and the other bouts: the learner
+    np.testing.assert_array_equal(mixed[4:], a[4:])
+    assert not np.allclose(mixed[1, 1], a[1, 1])
+
+
+def test_pool_transitions_are_left_out_of_the_update():
+    learner = _pool_learner()
+    ts = learner.init(jax.random.PRNGKey(0))
+    ts, traj = learner.rollout(ts)
+    assert traj.obs.shape == (8, 32, 1)
+    kept = learner.pool.learner_samples(traj)
+    assert kept.obs.shape == (8, 28, 1)  # 16 bouts x 2 players, less player 1 of the 4 pool bouts
+    ids = jnp.broadcast_to(jnp.arange(32), (8, 32))
+    np.testing.assert_array_equal(learner.pool.learner_samples(ids)[0], [0, 2, 4, 6] + list(range(8, 32)))
+    # Changing what the pool's players did changes nothing the learner trains on.
+    garbage = traj.replace(task_reward=traj.task_reward.at[:, 1:8:2].set(1e6), action=traj.action.at[:, 1:8:2].set(9.0))
+    for a, b in zip(jax.tree.leaves(learner.pool.learner_samples(traj)), jax.tree.leaves(learner.pool.learner_samples(garbage))):
+        np.testing.assert_array_equal(a, b)
+    ts2, m = learner.iteration(learner.init(jax.random.PRNGKey(0)))
+    assert all(np.all(np.isfinite(np.asarray(v))) for v in jax.tree.leaves(m))
+    assert int(m["pool/filled"]) == 1 and "pool/target" in m
+
+
+def test_pool_snapshots_fill_a_ring_and_members_are_drawn_among_them():
+    learner = _pool_learner()
+    pool = learner.pool
+    ts = learner.init(jax.random.PRNGKey(0))
+    ps = ts.pool
+    versions = [jax.tree.map(lambda x: jnp.full_like(x, v), ts.policy_params) for v in range(1, 6)]
+    first = lambda s, k: float(jax.tree.leaves(s.policy_params)[0][k].ravel()[0])
+    untrained = first(ps, 0)
+    for it, params in enumerate(versions, start=1):  # every 2 iterations into slot 1, 0, 1, ...
+        ps = pool.snapshot(ps, params, ts.obs_norm, jnp.asarray(it))
+        if it == 1:
+            assert int(ps.filled) == 1 and first(ps, 0) == untrained
+        if it == 2:
+            assert int(ps.filled) == 2 and first(ps, 1) == 2.0 and first(ps, 0) == untrained
+    assert int(ps.filled) == 2 and first(ps, 0) == 4.0 and first(ps, 1) == 2.0  # iteration 4 replaced the oldest
+    one = ts.pool  # only the untrained policy so far: every draw is member 0
+    drawn = pool.redraw(one, jnp.ones((16,), bool), jax.random.PRNGKey(1))
+    np.testing.assert_array_equal(drawn.opponent, 0)
+    two = ps.replace(opponent=jnp.array([1, 1, 1, 1], jnp.int32))
+    draws = [pool.redraw(two, jnp.array([True, False, True, False] + [False] * 12), jax.random.PRNGKey(k)).opponent
+             for k in range(20)]
+    draws = np.stack(draws)
+    np.testing.assert_array_equal(draws[:, [1, 3]], 1)  # bouts that go on keep their member
+    assert set(draws[:, [0, 2]].ravel()) == {0, 1}
+
+
+def test_pool_settings_are_checked():
+    with pytest.raises(ValueError, match="player_policies=shared"):
+        Learner(dataclasses.replace(_learner("separate").cfg, opponent_pool=2), env=Duel(EnvConfig(groups=(), players=2)))
+    with pytest.raises(ValueError, match="pool bouts"):
+        _pool_learner(opponent_share=1.0)
+    with pytest.raises(ValueError, match="opponent_every"):
+        _pool_learner(opponent_every=0)
