@@ -142,3 +142,49 @@ def test_backend_names():
     assert backends.resolve_backend("auto") == ("mujoco" if jax.default_backend() == "cpu" else "mjx")
     with pytest.raises(ValueError, match="backend"):
         backends.resolve_backend("bullet")
+
+
+def _saturated_substep(servo_damping: str) -> dict[str, np.ndarray]:
+    """qvel after one 120-Hz substep from the in-air state of ``_states`` with every PD target
+    0.8 rad away, so that every actuator sits at its torque limit, on both backends."""
+    data0, _ = _states()
+    data0 = jax.tree.map(lambda x: x[:1], data0)
+    target = data0.qpos[:, 7:] + 0.8
+    out = {}
+    for name in ("mujoco", "mjx"):
+        cfg = sim.PhysicsConfig(control_hz=120.0, servo_damping=servo_damping, backend=name)
+        phys = backends.make_physics(name, sim.mj_model(cfg), build_mjcf(False), sim.mjx_model(cfg), 1)
+        with jit_enabled():
+            d, _ = jax.jit(jax.vmap(phys.step))(data0, target)
+        out[name] = np.asarray(d.qvel[0, 6:])
+    return out
+
+
+@pytest.mark.physics
+def test_saturated_servo_damping_in_the_joint_makes_c_and_mjx_agree():
+    """With the damping in the clipped actuator, MuJoCo C integrates a saturated actuator without
+    it (its force does not depend on qdot) and MJX with it, so they part by tens of rad/s in one
+    substep; with the damping on the joint both integrate it implicitly and agree."""
+    act = _saturated_substep("actuator")
+    joint = _saturated_substep("joint")
+    gap_act = np.abs(act["mujoco"] - act["mjx"]).max()
+    gap_joint = np.abs(joint["mujoco"] - joint["mjx"]).max()
+    print(f"max |qvel C - MJX| after one saturated substep: actuator {gap_act:.3f}, joint {gap_joint:.4f} rad/s")
+    assert gap_act > 5.0
+    assert gap_joint < 0.05
+    # Joint damping slows the saturated joints as MJX's implicit actuator damping did.
+    assert np.abs(joint["mujoco"]).max() < 0.5 * np.abs(act["mujoco"]).max()
+
+
+def test_servo_damping_moves_kd_to_the_joints_and_is_checked():
+    m_act = sim.mj_model(sim.PhysicsConfig())
+    m_joint = sim.mj_model(sim.PhysicsConfig(servo_damping="joint"))
+    dof = m_act.jnt_dofadr[m_act.actuator_trnid[:, 0]]
+    np.testing.assert_array_equal(m_joint.dof_damping[dof], character().kd)
+    assert not m_joint.actuator_biasprm[:, 2].any() and not m_act.dof_damping.any()
+    q, qd, t = (jnp.asarray(np.full(m_act.nu, v), jnp.float32) for v in (0.0, 2.0, 1.0))
+    ch = character()  # the formula: clip(kp (t - q)) - kd qd with the damping on the joint
+    np.testing.assert_allclose(sim.pd_torque(ch, q, qd, t, "joint"),
+                               np.clip(ch.kp * 1.0, -ch.max_torque, ch.max_torque) - ch.kd * 2.0, rtol=1e-6)
+    with pytest.raises(ValueError, match="servo_damping"):
+        sim.PhysicsConfig(servo_damping="spring")

@@ -72,11 +72,8 @@ class BoutEnv:
             raise ValueError("a two-player scene needs env.init_motions: the clips its players start from")
         self.character = ch = character(sport.sword_shield)
         self.layout = A.layout(ac)
-        m = A.arena_model(ac).__copy__()
         pc = cfg.physics
-        m.opt.timestep = 1.0 / pc.sim_hz
-        m.opt.iterations = pc.solver_iterations
-        m.opt.ls_iterations = pc.ls_iterations
+        m = sim.apply_settings(A.arena_model(ac).__copy__(), pc)
         self.mj = m
         self.model = mjx.put_model(m, impl=sim._impl(pc))
         self.channels = A.channels(ac, m)

@@ -337,7 +337,7 @@ class HumanoidEnv:
         """The servo's mechanical power sum_j |tau_j qdot_j| (W) at ``data``, holding ``target``
         (the torque formula of ``sim.pd_torque``: the state after the step, not a substep mean)."""
         q, qd = data.qpos[7:self._nq], data.qvel[6:self._nv]
-        tau = sim.pd_torque(self.character, q, qd, target)
+        tau = sim.pd_torque(self.character, q, qd, target, self.cfg.physics.servo_damping)
         return jnp.nan_to_num(jnp.sum(jnp.abs(tau * qd)), nan=0.0, posinf=0.0)
 
     def action_for_target(self, target: jax.Array) -> jax.Array:

@@ -57,6 +57,19 @@ class PhysicsConfig:
     ``physics/backends.py``."""
     threads: int = 0
     """Threads of the MuJoCo C backend's pool (0: one per CPU core)."""
+    servo_damping: str = "actuator"
+    """Where the PD servo's damping ``-kd*qdot`` lives. 'actuator' (every run before 2026-12-05):
+    in the actuator's affine bias, clipped together with ``kp*(target - q)`` at the torque limit.
+    MuJoCo C then leaves a clipped actuator out of the implicit integration (its force no longer
+    depends on qdot) while MJX keeps it: from a tracker's reset state with 14 of 28 actuators at
+    their limit, one 120-Hz substep gave an ankle 38 rad/s in C and 2.4 rad/s in MJX, and the same
+    trained tracker drew 3-4x the servo power in C (1808 vs 628 W). 'joint': ``kd`` as joint
+    damping (implicit and never clipped), the actuator clipping only ``kp*(target - q)``; the two
+    engines then agree (``tests/test_backends.py``)."""
+
+    def __post_init__(self):
+        if self.servo_damping not in ("actuator", "joint"):
+            raise ValueError(f"servo_damping must be 'actuator' or 'joint', got {self.servo_damping!r}")
 
     @property
     def substeps(self) -> int:
@@ -82,10 +95,19 @@ def character_xml(cfg: PhysicsConfig, floor: bool = True) -> str:
 
 def mj_model(cfg: PhysicsConfig) -> mujoco.MjModel:
     """The MuJoCo C model of the scene with the solver settings of ``cfg``."""
-    m = mujoco.MjModel.from_xml_string(scene_xml(cfg))
+    return apply_settings(mujoco.MjModel.from_xml_string(scene_xml(cfg)), cfg)
+
+
+def apply_settings(m: mujoco.MjModel, cfg: PhysicsConfig) -> mujoco.MjModel:
+    """``m`` (edited in place) with the rate, solver budget and servo damping of ``cfg``; every
+    scene, one character's or a two-player arena, goes through here."""
     m.opt.timestep = 1.0 / cfg.sim_hz
     m.opt.iterations = cfg.solver_iterations
     m.opt.ls_iterations = cfg.ls_iterations
+    if cfg.servo_damping == "joint":  # kd leaves the clipped actuator for the joint (never clipped)
+        dof = m.jnt_dofadr[m.actuator_trnid[:, 0]]
+        m.dof_damping[dof] = -m.actuator_biasprm[:, 2]
+        m.actuator_biasprm[:, 2] = 0.0
     return m
 
 
@@ -126,7 +148,12 @@ def pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) 
     return backends.mjx_pd_step(model, data, target, substeps)
 
 
-def pd_torque(ch: Character, q: jax.Array, qdot: jax.Array, target: jax.Array) -> jax.Array:
-    """The servo's torque as an explicit formula (for tests and analysis) [.., n_dof]."""
-    tau = jnp.asarray(ch.kp) * (target - q) - jnp.asarray(ch.kd) * qdot
-    return jnp.clip(tau, -jnp.asarray(ch.max_torque), jnp.asarray(ch.max_torque))
+def pd_torque(ch: Character, q: jax.Array, qdot: jax.Array, target: jax.Array,
+              servo_damping: str = "actuator") -> jax.Array:
+    """The servo's torque as an explicit formula (for tests and analysis) [.., n_dof]: the
+    actuator's and, with ``servo_damping='joint'``, the joint damping's (``PhysicsConfig``)."""
+    lim = jnp.asarray(ch.max_torque)
+    damping = jnp.asarray(ch.kd) * qdot
+    if servo_damping == "joint":
+        return jnp.clip(jnp.asarray(ch.kp) * (target - q), -lim, lim) - damping
+    return jnp.clip(jnp.asarray(ch.kp) * (target - q) - damping, -lim, lim)
