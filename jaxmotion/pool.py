@@ -57,7 +57,7 @@ class OpponentPool:
         """Indices into the [B * P] sample axis (``players_as_samples``) that the learner played."""
         self.num_learner_samples = len(self.learner_index)
 
-    def init(self, policy_params, obs_norm, rng: jax.Array) -> PoolState:
+    def init(self, policy_params, obs_norm) -> PoolState:
         """A pool whose one snapshot (repeated K times) is the untrained policy."""
         stack = lambda x: jnp.broadcast_to(x, (self.size,) + jnp.shape(x)).copy()
         return PoolState(policy_params=jax.tree.map(stack, policy_params), obs_norm=jax.tree.map(stack, obs_norm),

@@ -256,7 +256,7 @@ class Learner:
             clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
             # A copy: the chunk donates the state, which must not delete the library's own array.
             clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None,
-            pool=self.pool.init(agent["policy_params"], agent["obs_norm"], rng) if self.pool else None)
+            pool=self.pool.init(agent["policy_params"], agent["obs_norm"]) if self.pool else None)
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
