@@ -258,7 +258,8 @@ def test_sample_wraps_loop_and_clamps_otherwise(lib_and_clips):
     for i in (3, 4):  # period = duration = (T - 1) / fps = 1 s
         np.testing.assert_allclose(s.dof_pos[i], s.dof_pos[2], atol=1e-4)
         np.testing.assert_allclose(s.root_pos[i], s.root_pos[2], atol=1e-4)
-    np.testing.assert_allclose(s.root_pos[6], clips[1].root_pos[0], atol=1e-5)  # t = duration -> frame 0
+    # t = duration is the last frame (continuous from below: a tracked loop ends there), not frame 0
+    np.testing.assert_allclose(s.root_pos[6], clips[1].root_pos[-1], atol=1e-5)
     np.testing.assert_allclose(s.root_pos[7], clips[1].root_pos[0], atol=1e-5)
     assert not np.allclose(s.dof_pos[5], s.dof_pos[2])  # different clips really differ
 

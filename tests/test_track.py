@@ -23,9 +23,10 @@ def _moving_clip(frames=30):
     return make_test_clip(frames, 30.0, root_vel=(0.6, 0.1, 0.0), root_height=0.95, yaw_rate=0.4, dof_pos=dof)
 
 
-def _env(goal="rotation", termination="max", distance=0.25):
-    lib = MotionLib.from_clips([_moving_clip()])
-    task = TaskConfig(name="track", track=TrackConfig(goal=goal, termination=termination, termination_distance=distance))
+def _env(goal="rotation", termination="max", distance=0.25, clip=None, residual=False):
+    lib = MotionLib.from_clips([_moving_clip() if clip is None else clip])
+    task = TaskConfig(name="track", track=TrackConfig(goal=goal, termination=termination, termination_distance=distance,
+                                                      residual=residual))
     cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=100, policy_frames=1, task=task,
                     init_within_limits=False, init_above_ground=False)
     return HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
@@ -112,6 +113,43 @@ def test_the_clip_end_truncates(env):
         last = step(task.init(None, None, (jnp.int32(0), jnp.float32(dur - env.dt))))
         before = step(task.init(None, None, (jnp.int32(0), jnp.float32(dur - 3 * env.dt))))
     assert bool(last.truncated) and not bool(before.truncated)
+
+
+def test_a_loop_clip_ends_too():
+    """A loop clip's time wraps without its root moving on: tracked past the end, the reference
+    would jump back to the cycle's start (0.5 m here) and end every such episode as a failure."""
+    import dataclasses
+    env = _env(clip=dataclasses.replace(_moving_clip(), loop=True))
+    task, dur = env.task, float(env.init_lib.clip_duration[0])
+    with jit_enabled():
+        here = jax.jit(lambda: _ref_frame(env, dur))()
+        beyond = jax.jit(lambda: _ref_frame(env, dur + env.dt))()
+        last = jax.jit(lambda g: task.step(g, here, here, None))(task.init(None, None, (jnp.int32(0), jnp.float32(dur - env.dt))))
+    assert float(jnp.linalg.norm(beyond.pos[0] - here.pos[0])) > 0.4  # the wrap this avoids
+    assert bool(last.truncated) and not bool(last.terminated)
+
+
+def test_residual_actions_servo_towards_the_next_reference_frame():
+    """``residual``: the PD target is the reference's joint angles one control step ahead
+    (within the joint limits) + the action. A zero action steps the scene exactly as the absolute
+    action that names those angles does."""
+    res, ab = _env(residual=True), _env()
+    t = 0.3
+    goal = res.task.init(None, None, (jnp.int32(0), jnp.float32(t)))
+    with jit_enabled():
+        base = jax.jit(res.task.pd_base)(goal)
+    assert ab.task.pd_base(goal) is None
+    from jaxmotion.motion.motionlib import sample
+    ahead = sample(res.init_lib, jnp.int32(0), jnp.float32(t + res.dt)).dof_pos
+    now = sample(res.init_lib, jnp.int32(0), jnp.float32(t)).dof_pos
+    np.testing.assert_allclose(base, jnp.clip(ahead, res._lo, res._hi), atol=1e-6)
+    assert float(jnp.max(jnp.abs(base - jnp.clip(now, res._lo, res._hi)))) > 1e-3  # one step ahead, not now
+    with jit_enabled():
+        state, _ = jax.jit(res.reset_at)(jax.random.PRNGKey(0), jnp.int32(0), jnp.float32(t))
+        s_res, o_res = jax.jit(res.step)(state, jnp.zeros(28))
+        s_ab, o_ab = jax.jit(ab.step)(state, ab.action_for_target(base))
+    np.testing.assert_allclose(s_res.data.qpos, s_ab.data.qpos, atol=1e-6)
+    np.testing.assert_allclose(o_res.task_reward, o_ab.task_reward, atol=1e-6)
 
 
 def test_tracking_in_the_scene(env):

@@ -330,8 +330,10 @@ class HumanoidEnv:
         return qpos[..., :self._nq]
 
     # ---- step --------------------------------------------------------------------------
-    def pd_target(self, action: jax.Array) -> jax.Array:
-        return self._mid + self.cfg.action_scale * action * self._half
+    def pd_target(self, action: jax.Array, base: jax.Array | None = None) -> jax.Array:
+        """PD targets of ``action`` [.., n_dof]: ``base`` (the task's ``pd_base``; None: the
+        joint ranges' mid-points) + action_scale * action * half-range."""
+        return (self._mid if base is None else base) + self.cfg.action_scale * action * self._half
 
     def power(self, data: mjx.Data, target: jax.Array) -> jax.Array:
         """The servo's mechanical power sum_j |tau_j qdot_j| (W) at ``data``, holding ``target``
@@ -340,9 +342,9 @@ class HumanoidEnv:
         tau = sim.pd_torque(self.character, q, qd, target, self.cfg.physics.servo_damping)
         return jnp.nan_to_num(jnp.sum(jnp.abs(tau * qd)), nan=0.0, posinf=0.0)
 
-    def action_for_target(self, target: jax.Array) -> jax.Array:
+    def action_for_target(self, target: jax.Array, base: jax.Array | None = None) -> jax.Array:
         """The action whose PD target is ``target`` [.., n_dof] (inverse of ``pd_target``)."""
-        return (target - self._mid) / (self.cfg.action_scale * self._half)
+        return (target - (self._mid if base is None else base)) / (self.cfg.action_scale * self._half)
 
     def step(self, state: EnvState, action: jax.Array,
              reset: tuple[EnvState, jax.Array] | None = None) -> tuple[EnvState, StepOut]:
@@ -354,7 +356,7 @@ class HumanoidEnv:
         ``where`` below keeps it only where an episode ended).
         """
         cfg = self.cfg
-        target = self.pd_target(action)
+        target = self.pd_target(action, self.task.pd_base(state.goal))
         data, ground, force = self.physics.step_forces(state.data, target)
         # Contacts are those of the last substep's collision pass (one substep old); the link
         # frames are computed at the new state for the observations, in JAX for every backend.

@@ -172,7 +172,9 @@ def _frame_pair(lib: MotionLib, clip: jax.Array, tc: jax.Array):
     n = lib.clip_len[clip]
     fps = lib.clip_fps[clip]
     dur = (n - 1).astype(jnp.float32) / fps
-    tw = jnp.where(lib.clip_loop[clip], jnp.mod(tc, dur), jnp.clip(tc, 0.0, dur))
+    # A loop wraps only outside [0, duration]: its last frame stays the last frame, not the first.
+    wrap = lib.clip_loop[clip] & ((tc < 0.0) | (tc > dur))
+    tw = jnp.where(wrap, jnp.mod(tc, dur), jnp.clip(tc, 0.0, dur))
     f = tw * fps
     i0 = jnp.clip(jnp.floor(f).astype(jnp.int32), 0, n - 2)
     alpha = jnp.clip(f - i0.astype(jnp.float32), 0.0, 1.0)

@@ -143,6 +143,11 @@ class TrackConfig:
     """Weights of those four terms (they sum to 1: a perfect frame pays 1)."""
     weight: float = 0.5
     """ω of the imitation objective (the paper's 0.5 task / 0.5 motion prior)."""
+    residual: bool = False
+    """False: the PD target is the joint range's mid-point + the action (the authors' code).
+    True: it is the reference's joint angles one control step ahead (clamped to the joint ranges)
+    + the action, so an untrained policy already servos towards the clip and learning only has
+    to add the corrections that keep it balanced."""
     energy_coef: float = 0.0005
     """The energy penalty -c * sum_j |tau_j qdot_j| (linear mechanical power, the authors' code;
     the paper prints the square) added to the imitation reward (the scene reports no power on an
@@ -253,6 +258,11 @@ class Task:
              power: jax.Array | None = None) -> TaskStep:
         return TaskStep(goal=goal, rewards=jnp.zeros((0,), jnp.float32),
                         terminated=jnp.zeros((), bool), info={})
+
+    def pd_base(self, goal: Any) -> jax.Array | None:
+        """The PD targets [n_dof] that the action is a residual on, or None for the joint ranges'
+        mid-points (the default: ``EnvConfig.action_scale``)."""
+        return None
 
     def sense(self, goal: Any, props) -> Any:
         """The goal after the physics step moved the scene's props (``physics/props.Props``)."""

@@ -16,7 +16,8 @@ goal is that clip's next frame. Notes ``phc.md`` §1-§3, the authors' code wher
   new state; the scene reports 0 on an episode's first 3 steps).
 * **Termination**: any body except the feet farther than 0.25 m from its reference (the code's
   ``max`` rule), or their mean beyond ``termination_distance`` (``mean``, the paper's 0.5 m). A
-  clip that ends truncates the episode (bootstrapped), a loop clip wraps.
+  clip that ends truncates the episode (bootstrapped), a loop clip too (its wrap would move the
+  reference root back to the cycle's start).
 
 Reference link frames come from the forward kinematics of the interpolated joint angles and
 velocities (``env.frames_of``), so a perfect tracker matches them to float precision.
@@ -65,6 +66,13 @@ class Track(Task):
         ms = sample(self.env.init_lib, goal.clip, goal.time + dt_ahead)
         return self.env.frames_of(*qpos_qvel(ms))
 
+    def pd_base(self, goal: TrackGoal) -> jax.Array | None:
+        """With ``residual``: the reference's joint angles one control step ahead, within limits."""
+        if not self.cfg.track.residual:
+            return None
+        dof = sample(self.env.init_lib, goal.clip, goal.time + self.env.dt).dof_pos
+        return jnp.clip(dof, self.env._lo, self.env._hi)
+
     def init(self, rng, frame, start=None):
         if start is None:
             raise ValueError("the track task needs the reset's clip and time (env.reset passes them)")
@@ -105,8 +113,10 @@ class Track(Task):
         far = jnp.max(checked) if c.termination == "max" else jnp.mean(checked)
         lib = self.env.init_lib
         t = goal.time + dt
-        # The clip ends when it has no next frame to track (loop clips wrap in ``sample``).
-        ended = ~lib.clip_loop[goal.clip] & (t + dt > lib.clip_duration[goal.clip] + 1e-6)
+        # The clip ends when it has no next frame to track, loop clips too: ``sample`` wraps a
+        # loop's time without carrying its root forward, so past the end the reference would jump
+        # back to the cycle's start and every episode there would end as a failure.
+        ended = t + dt > lib.clip_duration[goal.clip] + 1e-6
         info = {"body_error_m": jnp.mean(e["body"]), "max_error_m": jnp.max(checked)}
         reward = self.imitation_reward(e)
         if c.energy_coef and power is not None:
