@@ -1,9 +1,14 @@
 """A tracker of three short DeepMimic clips (walk, run, punch): the CPU-sized demonstration that
-tracking is learned (success and g-MPJPE against the same seeds untrained, `eval --untrained`)."""
+tracking is learned (success and g-MPJPE against the same seeds untrained, `eval --untrained`).
+
+Measured on the 2-core CPU (2026-12-05, residual targets, seed 0; README "Motion tracking"): at
+12.3M samples (3000 iterations, 91 min sharing the cores) walk and punch are tracked to the end
+(2/3, g-MPJPE 106 mm on them), the run to frame 19 of 24; untrained, same seed, 0/3 (26, 12 and
+19 frames)."""
 
 from _common import track
 
 
 def config():
     return track(("deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_run.txt", "deepmimic/humanoid3d_punch.txt"),
-                 iterations=1500)
+                 iterations=3000)
