@@ -260,8 +260,8 @@ class Task:
                         terminated=jnp.zeros((), bool), info={})
 
     def pd_base(self, goal: Any) -> jax.Array | None:
-        """The PD targets [n_dof] that the action is a residual on, or None for the joint ranges'
-        mid-points (the default: ``EnvConfig.action_scale``)."""
+        """The PD targets [n_dof] the action is added to (``HumanoidEnv.pd_target``: base +
+        ``EnvConfig.action_scale`` * action * half-range), or None for the joint ranges' mid-points."""
         return None
 
     def sense(self, goal: Any, props) -> Any:
