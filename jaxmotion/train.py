@@ -83,6 +83,15 @@ def _log_eval(learner: Learner, ts: TrainState, cfg: TrainConfig, path: Path, la
     last.update(row)
 
 
+def mines_after(iteration: int, cfg: TrainConfig) -> bool:
+    """Whether hard negatives are mined after the chunk that ends at ``iteration``: every
+    ``hard_negatives_every`` chunks counted in iterations, not in this process's chunks, the
+    run's last chunk included, and before that chunk's checkpoint, so that a run stopped at a
+    mining iteration and resumed mines and samples as the uninterrupted one (skipping the last
+    chunk lost the mining at the 1000th iteration of a 1000-iteration run resumed to 3000)."""
+    return bool(cfg.hard_negatives_every) and (iteration // cfg.chunk) % cfg.hard_negatives_every == 0
+
+
 def new_run_dir(experiment: str, root: Path = Path("runs")) -> Path:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     d = root / experiment / stamp
@@ -165,9 +174,7 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         bar.set_postfix(post, refresh=False)
         bar.update(cfg.chunk)
         done = int(ts.iteration) >= cfg.iterations
-        if cfg.hard_negatives_every and (int(ts.iteration) // cfg.chunk) % cfg.hard_negatives_every == 0 and not done:
-            # Counted in iterations, not in this process's chunks, and before the checkpoint, so
-            # that a resumed run mines and samples as the uninterrupted one.
+        if mines_after(int(ts.iteration), cfg):
             from jaxmotion.track_eval import hard_negative_update
             ts, hard = hard_negative_update(learner, ts, run_dir)
             bar.write(f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of "

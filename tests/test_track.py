@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -337,3 +338,13 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
         ts = learner.init(jax.random.PRNGKey(0))  # as train.py does
         jax.jit(lambda s: s, donate_argnums=0)(ts)
     np.testing.assert_allclose(np.asarray(learner.env.init_lib.clip_weight), [1.0])
+
+
+def test_hard_negatives_are_mined_on_the_iteration_count_the_last_chunk_included():
+    """Mining follows the iteration count alone, so a run that stops on a mining iteration has
+    mined before its last checkpoint and, resumed, samples as the uninterrupted run."""
+    from jaxmotion.train import mines_after
+    from jaxmotion.trainer import TrainConfig
+    cfg = TrainConfig(iterations=100, chunk=10, hard_negatives_every=5)
+    assert [it for it in range(10, 101, 10) if mines_after(it, cfg)] == [50, 100]
+    assert not any(mines_after(it, dataclasses.replace(cfg, hard_negatives_every=0)) for it in range(10, 101, 10))
