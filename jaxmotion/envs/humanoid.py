@@ -288,7 +288,11 @@ class HumanoidEnv:
 
     def within_limits(self, qpos: jax.Array) -> jax.Array:
         """``qpos`` [..., nq] with the joint angles clamped to the joint ranges (root untouched)."""
-        return qpos.at[..., 7:].set(jnp.clip(qpos[..., 7:], self._lo, self._hi))
+        return qpos.at[..., 7:].set(self.clip_dof(qpos[..., 7:]))
+
+    def clip_dof(self, dof: jax.Array) -> jax.Array:
+        """Joint angles [..., n_dof] clamped to the joint ranges."""
+        return jnp.clip(dof, self._lo, self._hi)
 
     def lowest_point(self, qpos: jax.Array) -> jax.Array:
         """Height of the lowest point of the character's spheres, capsules and boxes at ``qpos``."""

@@ -71,7 +71,7 @@ class Track(Task):
         if not self.cfg.track.residual:
             return None
         dof = sample(self.env.init_lib, goal.clip, goal.time + self.env.dt).dof_pos
-        return jnp.clip(dof, self.env._lo, self.env._hi)
+        return self.env.clip_dof(dof)
 
     def init(self, rng, frame, start=None):
         if start is None:
