@@ -348,3 +348,21 @@ def test_hard_negatives_are_mined_on_the_iteration_count_the_last_chunk_included
     cfg = TrainConfig(iterations=100, chunk=10, hard_negatives_every=5)
     assert [it for it in range(10, 101, 10) if mines_after(it, cfg)] == [50, 100]
     assert not any(mines_after(it, dataclasses.replace(cfg, hard_negatives_every=0)) for it in range(10, 101, 10))
+
+
+def test_uniform_init_sampling_picks_every_clip_alike():
+    """``init_sampling='uniform'``: a 30-frame and a 90-frame clip start episodes equally often
+    (by duration: 1 : 3); a typo is an error, not a silent default."""
+    long = make_test_clip(90, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)
+    lib = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87), long])
+    np.testing.assert_allclose(np.asarray(lib.clip_weight), [29 / 118, 89 / 118], rtol=1e-5)
+    for sampling, want in (("duration", 89 / 118), ("uniform", 0.5)):
+        cfg = EnvConfig(groups=(GroupConfig(name="full"),), policy_frames=1, task=TaskConfig(name="track"),
+                        init_sampling=sampling)
+        env = HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
+        with jit_enabled():
+            clips = jax.jit(lambda k: jax.vmap(lambda kk: env.reset(kk)[0].goal.clip)(jax.random.split(k, 4000)))
+            freq = float(np.mean(np.asarray(clips(jax.random.PRNGKey(0)))))
+        assert abs(freq - want) < 0.03, (sampling, freq)
+    with pytest.raises(ValueError, match="init_sampling"):
+        HumanoidEnv(dataclasses.replace(cfg, init_sampling="uniformly"), motion_libs=(lib,), init_lib=lib)

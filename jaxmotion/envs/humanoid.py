@@ -29,7 +29,7 @@ from mujoco import mjx
 
 from jaxmotion.envs import observations as O
 from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
-from jaxmotion.motion.motionlib import (MotionLib, load_motionlib, qpos_of, qpos_qvel, sample, sample_times,
+from jaxmotion.motion.motionlib import (MotionLib, load_motionlib, reweighted, qpos_of, qpos_qvel, sample, sample_times,
                                         sample_windows)
 from jaxmotion.physics import sim
 from jaxmotion.physics.arena import ArenaConfig
@@ -102,6 +102,10 @@ class EnvConfig:
     """|qvel| above this counts as unstable physics: the environment is reset."""
     task: TaskConfig = TaskConfig()
     """The task the character performs besides imitating (``tasks/``); 'imitate' for none."""
+    init_sampling: str = "duration"
+    """How a reset picks its clip from ``init_motions``: 'duration' (in proportion to each clip's
+    length, so every moment of the data is equally likely) or 'uniform' (each clip alike, as
+    the PHC authors' motion library, so short clips are not starved)."""
     drop_props: bool = False
     """Load sword-and-shield clips (17 bodies) onto the 15-body humanoid by dropping the sword,
     the shield and the right wrist (``motion.clip.drop_sword_shield``)."""
@@ -183,7 +187,7 @@ class HumanoidEnv:
             init_lib = (load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet)
                         if cfg.init_motions
                         else self.motion_libs[0])
-        self.init_lib = init_lib
+        self.init_lib = reweighted(init_lib, cfg.init_sampling)
         names = {n for lib in (*self.motion_libs, init_lib) for n in (*lib.clip_names, *lib.clip_paths)}
         unknown = [p for p in cfg.level_feet if not any(n == p or n.endswith(p) for n in names)]
         if unknown:

@@ -167,6 +167,16 @@ def load_motionlib(paths: str | os.PathLike | Iterable[str | os.PathLike],
     return MotionLib.from_clips([level_feet(c) if wanted(c) else c for c in clips], weights)
 
 
+def reweighted(lib: MotionLib, sampling: str) -> MotionLib:
+    """``lib`` with its clip probabilities by ``sampling``: 'duration' keeps them (the weights it
+    was built with, by default each clip's length), 'uniform' makes every clip equally likely."""
+    if sampling == "duration":
+        return lib
+    if sampling == "uniform":
+        return lib.replace(clip_weight=jnp.full((lib.num_clips,), 1.0 / lib.num_clips, jnp.float32))
+    raise ValueError(f"init_sampling must be 'duration' or 'uniform', got {sampling!r}")
+
+
 def _frame_pair(lib: MotionLib, clip: jax.Array, tc: jax.Array):
     """Global frame indices around clip time ``tc`` (wrapped or clamped) and the blend weight."""
     n = lib.clip_len[clip]
