@@ -115,7 +115,8 @@ TRACK_TRAIN = tuple(
     if p not in TRACK_DEV)
 
 
-def track(clips: tuple[str, ...], goal: str = "rotation", iterations: int = 5000, residual: bool = True) -> TrainConfig:
+def track(clips: tuple[str, ...], goal: str = "rotation", iterations: int = 5000, residual: bool = True,
+          init_sampling: str = "duration") -> TrainConfig:
     """A tracker of ``clips`` (PHC's imitation reward + a 10-frame full-body motion prior, ω 0.5 /
     0.5; reference-state init at random times; no contact termination, the distance rule instead;
     a fixed σ = e^-2.9 as the authors'; hard-negative mining every 2M samples), sized for a CPU
@@ -142,7 +143,7 @@ def track(clips: tuple[str, ...], goal: str = "rotation", iterations: int = 5000
     from jaxmotion.tasks import TrackConfig
     env = EnvConfig(init_motions=clips, groups=(GroupConfig(name="full", motions=clips, frames=10),),
                     physics=PhysicsConfig(servo_damping="joint"),
-                    episode_steps=300, policy_frames=1, early_termination=False, drop_props=True,
+                    episode_steps=300, policy_frames=1, early_termination=False, drop_props=True, init_sampling=init_sampling,
                     task=TaskConfig(name="track", track=TrackConfig(goal=goal, residual=residual)))
     return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256),
                                               state_dependent_std=False, init_log_std=-2.9),
