@@ -2,7 +2,7 @@
 
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
 from jaxmotion.tasks import AimConfig, HeadingConfig, LocationConfig, TaskConfig  # noqa: F401 (re-exported)
-from jaxmotion.trainer import DiscConfig, NetConfig, PPOConfig, TrainConfig  # noqa: F401 (re-exported)
+from jaxmotion.training.learner import DiscConfig, NetConfig, PPOConfig, TrainConfig  # noqa: F401 (re-exported)
 
 WALK = (
     "compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",
@@ -66,7 +66,7 @@ def incremental(scratch: str, meta: str) -> TrainConfig:
     folder, or an experiment's folder of runs: its newest run; ``jaxmotion/meta.py``)."""
     import dataclasses
 
-    from jaxmotion.experiments import load_experiment
+    from jaxmotion.config.experiments import load_experiment
     return dataclasses.replace(load_experiment(scratch), meta=meta)
 
 

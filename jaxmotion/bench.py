@@ -53,7 +53,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxmotion.physics import sim
-from jaxmotion.data import cli_errors
+from jaxmotion.config.errors import cli_errors
 
 ROOT_HEIGHT = 0.89
 """Standing root height (m) of the humanoid with all joint angles 0."""
@@ -278,7 +278,7 @@ def _learner(cfg: BenchConfig, batch: int, backend: str = "auto"):
     """A ``Learner`` for ``cfg.exp`` with ``num_envs = batch`` (minibatches shrunk to fit) on
     physics ``backend``."""
     from jaxmotion import config as C
-    from jaxmotion.trainer import Learner
+    from jaxmotion.training.learner import Learner
 
     tc = C.apply_overrides(C.load_experiment(cfg.exp), cfg.overrides + (f"env.physics.backend={backend}",))
     n = batch * tc.ppo.horizon * tc.env.players
@@ -314,7 +314,7 @@ def prepare_rollout(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, 
 
 def prepare_train(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, dict[str, float]]:
     """Whole training iterations (``make_train_chunk``, ``chunk`` of them per call), donated."""
-    from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
+    from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
 
     learner, tc = _learner(cfg, batch, backend)
     mesh = make_mesh()

@@ -469,7 +469,7 @@ def test_default_hinge_matches_the_previous_numbers():
 
 
 def test_unknown_disc_loss_is_rejected_with_the_valid_names():
-    from jaxmotion.trainer import DiscConfig
+    from jaxmotion.training.learner import DiscConfig
 
     apply_fn, params = _linear_disc()
     zeros = jnp.zeros((2, 4))
@@ -487,7 +487,7 @@ def test_learner_reward_floor_follows_the_disc_loss(loss_name, accepted):
     """A fall paying -0.5 is below the lsgan and bce floors (0), not below the hinge's (-1)."""
     from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
     from jaxmotion.motion import MotionLib, make_test_clip
-    from jaxmotion.trainer import DiscConfig, Learner, PPOConfig, TrainConfig
+    from jaxmotion.training.learner import DiscConfig, Learner, PPOConfig, TrainConfig
 
     stand = MotionLib.from_clips([make_test_clip(10, 30.0)])
     env_cfg = EnvConfig(groups=(GroupConfig(name="full"),))

@@ -10,7 +10,7 @@ import pytest
 from mujoco import mjx
 
 from conftest import jit_enabled
-from jaxmotion.envs import observations as O
+from jaxmotion.motion import observations as O
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.physics import backends, sim

@@ -352,17 +352,18 @@ def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
 
 
 def _learner(sport: str = "boxing", **kw):
-    from jaxmotion.trainer import Learner, NetConfig, PPOConfig, TrainConfig
+    from jaxmotion.training.learner import NetConfig, PPOConfig, TrainConfig
+    from jaxmotion.training.runs import make_learner
     env = _env(sport, task=TaskConfig(name=sport, boxing=dataclasses.replace(
         TaskConfig().boxing, start_distance=(0.7, 0.9))), episode_steps=30)
     cfg = TrainConfig(env=env.cfg, net=NetConfig(policy_hidden=(16,), critic_hidden=(16,)),
                       ppo=PPOConfig(num_envs=2, horizon=4, minibatch_size=8, multi_objective=False,
                                     terminate_reward=None, absorbing_termination=False), **kw)
-    return Learner(cfg, env=env)
+    return make_learner(cfg, env=env)
 
 
 def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
-    from jaxmotion.bout_eval import play, write_bout_html
+    from jaxmotion.evaluation.bouts import play, write_bout_html
     learner = _learner()
     assert learner.players == 2 and learner.cfg.samples_per_iteration == 2 * 4 * 2
     with jit_enabled():
@@ -389,9 +390,9 @@ def test_self_play_on_a_frozen_imitation_policy(tmp_path, data_dir):
     one-character imitation policy (``policy_frames=1``, the bout's body state): each player's
     meta action is that policy's on the player's own body observation, the policy starts as
     w * a_meta, and an iteration leaves the imitation policy as it was."""
-    from jaxmotion import checkpoint as ckpt
+    from jaxmotion.training import checkpoint as ckpt
     from jaxmotion.envs.humanoid import GroupConfig
-    from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
     walk = ("compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",)
     icfg = TrainConfig(env=EnvConfig(init_motions=walk, groups=(GroupConfig(name="full", motions=walk),),
                                      policy_frames=1, episode_steps=20),

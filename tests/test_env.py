@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import jit_enabled
-from jaxmotion.envs import observations as O
+from jaxmotion.motion import observations as O
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv, fall_contacts
 from jaxmotion.motion import MotionLib, make_test_clip, qpos_qvel, sample
 from jaxmotion.physics import backends, sim

@@ -123,7 +123,7 @@ def test_longest_streak():
 
 def test_task_reports_throws_and_release_error_in_a_scene_step():
     """The task's own step on link frames: the left hand releases at step 0 at 1 m/s upward."""
-    from jaxmotion.envs.observations import LinkFrames
+    from jaxmotion.motion.observations import LinkFrames
     from jaxmotion.physics.character import character as make_character
     from jaxmotion.tasks import TaskConfig, make_task
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from conftest import jit_enabled, train_scoring_last
-from jaxmotion import eval as E
+from jaxmotion.evaluation.imitation import evaluate
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
-from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
-from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
+from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
 ITERS = 240
 CHUNK = 40
@@ -44,11 +44,11 @@ def test_short_training_beats_untrained_policies():
         learner = _learner()
         mesh = make_mesh(jax.devices()[:1])
         untrained = [shard_state(learner.init(jax.random.PRNGKey(s)), mesh) for s in range(SEEDS)]
-        base = [E.evaluate(learner, ts, episodes=4) for ts in untrained]
+        base = [evaluate(learner, ts, episodes=4) for ts in untrained]
         ts = untrained[0]
         ts = jax.tree.map(lambda x: x.copy(), ts)  # the chunk donates its input
         chunk = make_train_chunk(learner, mesh, CHUNK, ts)
-        ts, last = train_scoring_last(chunk, ts, ITERS // CHUNK, lambda t: E.evaluate(learner, t, episodes=4))
+        ts, last = train_scoring_last(chunk, ts, ITERS // CHUNK, lambda t: evaluate(learner, t, episodes=4))
 
         # The reward one fixed discriminator (the final one) gives each policy's transitions, from
         # the same fresh resets, over whole episodes (a fall keeps its -1 until the reset).

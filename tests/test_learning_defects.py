@@ -24,12 +24,12 @@ from jaxmotion.algos import disc as D
 from jaxmotion.algos import gae as G
 from jaxmotion.algos import normalizer as N
 from jaxmotion.algos import popart as PA
-from jaxmotion.envs import observations as O
+from jaxmotion.motion import observations as O
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.motion.motionlib import qpos_qvel, sample_windows
 from jaxmotion.nets import networks as nets
-from jaxmotion.trainer import Learner, PPOConfig, TrainConfig
+from jaxmotion.training.learner import Learner, PPOConfig, TrainConfig
 
 
 # ---- 1: a perfect imitation is indistinguishable from its reference ------------------------

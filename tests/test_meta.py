@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from conftest import jit_enabled
-from jaxmotion import checkpoint as ckpt
+from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
-from jaxmotion.meta import MetaError, goal_index, resolve_run
+from jaxmotion.training.meta import MetaError, goal_index, resolve_run
 from jaxmotion.tasks import TaskConfig
-from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.training.runs import make_learner
 
 WALK = ("compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",)
 AIM = ("compositemotion/aiming/lafan1_aiming2_subject3_140_970.json",)
@@ -53,7 +54,7 @@ def incremental(meta_run):
     cfg = _cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2), GroupConfig(name="lower", motions=WALK)),
                meta=str(meta_run.parent))  # a folder of runs: its newest is taken
     with jit_enabled():
-        learner = Learner(cfg)
+        learner = make_learner(cfg)
         ts = learner.init(jax.random.PRNGKey(0))
     return learner, ts
 
@@ -81,7 +82,7 @@ def test_incremental_policy_starts_as_its_meta_policy(incremental, meta_run):
     obs = ts.obs
     with jit_enabled():
         a, _, a_meta = jax.jit(lambda o: learner.act(ts, o, None))(obs)
-        w = jax.jit(lambda o: learner.meta_weights(ts, o))(obs)
+        w = jax.jit(lambda o: learner.policy_weights(ts, o))(obs)
         # The meta policy acts on its own slice: the body state and the location block of the goal.
         body = learner.env.body_obs_size
         ref = jax.jit(lambda o: learner.meta.learner.act(ts.meta, o, None)[0])(obs[:, :body + 4])
@@ -114,14 +115,16 @@ def test_rollout_stores_the_meta_action_and_updates_leave_the_meta_policy_frozen
 
 
 def test_eval_reports_and_plots_the_meta_weights(incremental, tmp_path):
-    from jaxmotion import eval as E
-    from jaxmotion.plot import plot_meta_weights
+    from jaxmotion.evaluation.imitation import meta_weight_summary
+    from jaxmotion.evaluation.rollout import rollout
+    from jaxmotion.training.runs import spaces_mismatch
+    from jaxmotion.viz.plot import plot_meta_weights
 
     learner, ts = incremental
     with jit_enabled():
-        ro = E.rollout(learner, ts, episodes=2, steps=6)
+        ro = rollout(learner, ts, episodes=2, steps=6)
     assert ro["meta_w"].shape == (6, 2, learner.env.action_size)
-    summary = E.meta_weight_summary(learner, ro)
+    summary = meta_weight_summary(learner, ro)
     assert set(summary["group_mean"]) == {"upper", "lower"}
     assert summary["mean"] == pytest.approx(1 / (1 + np.exp(-3.0)), abs=1e-3)
     assert len(summary["dof"]) == learner.env.action_size
@@ -139,7 +142,6 @@ def test_meta_policy_with_another_history_length_is_a_clear_error(meta_run):
 def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(incremental):
     """eval --switch between runs that share spaces but not networks (one has a meta policy):
     each acts through its own learner; before the first switch it is the incremental run alone."""
-    from jaxmotion import eval as E
 
     learner, ts = incremental
     plain_cfg = _cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2),
@@ -147,9 +149,9 @@ def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(in
     with jit_enabled():
         plain = Learner(plain_cfg)
         plain_ts = plain.init(jax.random.PRNGKey(1))
-        assert E.spaces_mismatch([("inc", learner), ("plain", plain)]) is None
-        ro = E.rollout(learner, (ts, plain_ts), episodes=2, steps=5, switch_steps=2, actors=(learner, plain))
-        alone = E.rollout(learner, ts, episodes=2, steps=5)
+        assert spaces_mismatch([("inc", learner), ("plain", plain)]) is None
+        ro = rollout(learner, (ts, plain_ts), episodes=2, steps=5, switch_steps=2, actors=(learner, plain))
+        alone = rollout(learner, ts, episodes=2, steps=5)
     np.testing.assert_array_equal(ro["acting"][:, 0], [0, 0, 1, 1, 0, 0])
     assert np.isfinite(ro["qpos"]).all()
     np.testing.assert_allclose(ro["qpos"][:3], alone["qpos"][:3], atol=1e-5)
@@ -159,7 +161,7 @@ def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(in
 def test_play_acts_each_run_through_its_own_learner(incremental):
     """``python -m jaxmotion.play inc plain``: keys switch between an incremental run (meta policy)
     and a plain one; each acts through its own networks, from the same character state."""
-    from jaxmotion import play
+    from jaxmotion.viz import play
 
     learner, ts = incremental
     plain = Learner(_cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2),

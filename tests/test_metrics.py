@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from jaxmotion import metrics
+from jaxmotion.evaluation import metrics
 
 
 def _reference_dtw(cost):

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from conftest import REPO, jit_enabled
-from jaxmotion import play
+from jaxmotion.viz import play
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.tasks.base import HeadingConfig, TaskConfig
-from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
 
 def _learner(task: str) -> Learner:
@@ -83,7 +83,7 @@ def test_arrows_move_the_target_and_page_keys_turn_the_aim(aim_player):
 
 
 def test_heading_is_turned_and_its_speed_kept_in_range():
-    from jaxmotion.envs.observations import LinkFrames
+    from jaxmotion.motion.observations import LinkFrames
     from jaxmotion.physics.character import character
     from jaxmotion.tasks import make_task
 
@@ -114,7 +114,7 @@ def test_no_display_is_one_clear_line():
 
 
 def test_runs_with_other_spaces_cannot_take_turns():
-    from jaxmotion.eval import spaces_mismatch
+    from jaxmotion.training.runs import spaces_mismatch
     loc, head = _learner("location"), _learner("heading")
     assert spaces_mismatch([("a", loc), ("b", _learner("location"))]) is None
     msg = spaces_mismatch([("a", loc), ("b", head)])

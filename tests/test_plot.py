@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from jaxmotion import plot as P
+from jaxmotion.viz import plot as P
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxmotion import browser as B
-from jaxmotion import render as RD
-from jaxmotion import replay_html as H
+from jaxmotion.viz import browser as B
+from jaxmotion.viz import render as RD
+from jaxmotion.viz import replay_html as H
 from jaxmotion.motion import group_indices, make_test_clip
 from jaxmotion.motion import rotations as R
 from jaxmotion.physics.character import character
@@ -264,7 +264,7 @@ def test_html_replay_renders_in_headless_chromium(tmp_path, chromium):
 
 
 def test_ghost_alignment_matches_eval_world_aligned():
-    from jaxmotion.eval import world_aligned
+    from jaxmotion.envs.reference import world_aligned
     ref, _ = _clip_qpos(6, root_vel=(0.7, 0.2, 0.0))
     sim, _ = _clip_qpos(6, sign=-1.0)
     yaw = -0.6

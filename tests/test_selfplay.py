@@ -18,8 +18,8 @@ from flax import struct
 
 from conftest import jit_enabled
 from jaxmotion.envs.humanoid import EnvConfig, StepOut
-from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
-from jaxmotion.trainer import Learner, NetConfig, PPOConfig, TrainConfig, agent_of
+from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
+from jaxmotion.training.learner import Learner, NetConfig, PPOConfig, TrainConfig, agent_of
 
 TARGETS = (0.5, -0.5)
 

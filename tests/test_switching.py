@@ -10,11 +10,12 @@ import jax
 import numpy as np
 import pytest
 
-from jaxmotion import eval as E
+from jaxmotion.evaluation.imitation import switch_metrics
+from jaxmotion.evaluation.rollout import acting_policy, rollout
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.tasks import TaskConfig
-from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
 
 def _learner() -> Learner:
@@ -38,7 +39,7 @@ def switched():
     learner = _learner()
     with jit_enabled():
         a, b = (learner.init(jax.random.PRNGKey(s)) for s in (0, 1))
-        ro = E.rollout(learner, (a, b), episodes=2, steps=STEPS, switch_steps=EVERY)
+        ro = rollout(learner, (a, b), episodes=2, steps=STEPS, switch_steps=EVERY)
         reset, step = jax.jit(jax.vmap(learner.env.reset)), jax.jit(jax.vmap(learner.env.step))
         act = jax.jit(lambda p, o: learner.act(p, o, None)[0])
         state, obs = reset(jax.random.split(jax.random.split(jax.random.PRNGKey(0))[0], 2))
@@ -58,7 +59,7 @@ def test_switching_keeps_the_env_state_and_changes_only_the_policy(switched):
     np.testing.assert_allclose(ro["qpos"], qpos, atol=1e-4)
     assert not np.allclose(acts[-1], other)  # the two policies do act differently
     np.testing.assert_array_equal(ro["info"]["switch"][:, 0], [False, False, True, False, True, False])
-    m = E.switch_metrics(ro, learner.env.dt)
+    m = switch_metrics(ro, learner.env.dt)
     # Switches are counted in episodes still running; both are at the first switch (t = 2).
     assert m["switches"] == int((ro["info"]["switch"] & ro["stepped"]).sum()) >= 2
     assert 0 <= m["falls_after_switch"] <= 2
@@ -74,16 +75,16 @@ def test_the_acting_policy_is_recorded_per_frame(switched):
     # A switch (info) is the first step of a new turn: the acting index changes there.
     np.testing.assert_array_equal(ro["info"]["switch"][1:, 0], ro["acting"][1:-1, 0] != ro["acting"][:-2, 0])
     # Without switching (one state, or switch_steps 0) the first policy always acts.
-    np.testing.assert_array_equal(E.acting_policy(np.arange(5), 0, 2), np.zeros(5))
-    np.testing.assert_array_equal(E.acting_policy(np.arange(7), 3, 2), [0, 0, 0, 1, 1, 1, 0])
+    np.testing.assert_array_equal(acting_policy(np.arange(5), 0, 2), np.zeros(5))
+    np.testing.assert_array_equal(acting_policy(np.arange(7), 3, 2), [0, 0, 0, 1, 1, 1, 0])
 
 
 def test_switched_markers_and_html_show_who_acts(switched, tmp_path):
     """The video's and the page's markers: the task's target, and a sphere over the head in the
     acting policy's colour only when several policies took turns; the page names the acting run
     per frame. Read back from the written file (no browser)."""
-    from jaxmotion import render as RD
-    from jaxmotion.replay_html import write_rollout_html
+    from jaxmotion.viz import render as RD
+    from jaxmotion.viz.replay_html import write_rollout_html
     learner, ro, *_ = switched
     n = int(ro["alive"][:, 0].sum())
     single = RD.rollout_markers(learner, ro, 0, n)

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
-from jaxmotion.envs.observations import LinkFrames
+from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.tasks import TASKS, AimConfig, HeadingConfig, LocationConfig, TaskConfig, combine_weights, make_task
 from jaxmotion.tasks.location import AimGoal, HeadingGoal, LocationGoal
-from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
 NB = 15
 DT = 1.0 / 30.0
@@ -280,8 +280,9 @@ def test_short_location_training_beats_untrained_policies():
     """A policy trained for a few CPU minutes on target location must end its episodes nearer
     the targets than untrained policies do, by more than the spread of untrained seeds."""
     from conftest import jit_enabled, train_scoring_last
-    from jaxmotion import eval as E
-    from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
+    from jaxmotion.evaluation.imitation import rollout_metrics
+    from jaxmotion.evaluation.rollout import rollout
+    from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
 
     iters, chunk, seeds, episodes = 400, 40, 3, 32
     stand = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])
@@ -299,8 +300,8 @@ def test_short_location_training_beats_untrained_policies():
         disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk)
 
     def final_distance(learner, ts):
-        ro = E.rollout(learner, ts, episodes=episodes, steps=env_cfg.episode_steps - 1)
-        return float(np.mean(ro["info"]["distance"][-1])), E.rollout_metrics(learner, ro)["task"]
+        ro = rollout(learner, ts, episodes=episodes, steps=env_cfg.episode_steps - 1)
+        return float(np.mean(ro["info"]["distance"][-1])), rollout_metrics(learner, ro)["task"]
 
     with jit_enabled():
         learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(stand,), init_lib=stand))

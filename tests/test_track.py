@@ -172,7 +172,7 @@ def test_tracking_in_the_scene(env):
 
 # ---- evaluation metrics -----------------------------------------------------------------------
 def test_metrics_by_hand():
-    from jaxmotion.track_eval import clip_metrics, summarize
+    from jaxmotion.evaluation.tracking import clip_metrics, summarize
     rng = np.random.default_rng(0)
     ref = np.cumsum(rng.normal(scale=0.01, size=(20, 15, 3)), 0)
     m = clip_metrics(ref + np.asarray([0.01, 0.0, 0.0]), ref)  # every body 10 mm off, the same way
@@ -195,7 +195,7 @@ def test_metrics_by_hand():
 
 def test_unusable_clips_are_reported_not_raised(tmp_path):
     from jaxmotion.physics.character import character
-    from jaxmotion.track_eval import load_eval_clips
+    from jaxmotion.evaluation.tracking import load_eval_clips
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     clips, names, errors = load_eval_clips([bad, tmp_path / "missing.json"], character())
@@ -230,9 +230,9 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
     closer than the same networks untrained: frames within 0.5 m (the last three chunks' policies
     averaged) above the untrained seeds' mean by more than their standard deviation, g-MPJPE over
     the frames played below every untrained seed by more than their spread."""
-    from jaxmotion import track_eval as TE
-    from jaxmotion.loop import make_mesh, make_train_chunk, shard_state
-    from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    from jaxmotion.evaluation import tracking as TE
+    from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
+    from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
     # Frames played varies from seed to seed (measured 23-45 of 80 over six untrained seeds) and, for
     # the trained policy, from chunk to chunk (40-56 at iterations 120-480): the best of three
     # untrained seeds against one snapshot was too noisy a bar (a CI run: trained 42 vs 45, at
@@ -326,7 +326,7 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
     """The hard-negative sampler's weights start as a copy: the compiled chunk donates the state,
     and an aliased array would delete the library's own weights (measured: the first hard-negative
     update of a real run then failed with 'Array has been deleted')."""
-    from jaxmotion.trainer import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
     lib = MotionLib.from_clips([_moving_clip()])
     env_cfg = EnvConfig(groups=(GroupConfig(name="full", frames=2),), policy_frames=1, early_termination=False,
                         task=TaskConfig(name="track"))
@@ -343,8 +343,8 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
 def test_hard_negatives_are_mined_on_the_iteration_count_the_last_chunk_included():
     """Mining follows the iteration count alone, so a run that stops on a mining iteration has
     mined before its last checkpoint and, resumed, samples as the uninterrupted run."""
-    from jaxmotion.train import mines_after
-    from jaxmotion.trainer import TrainConfig
+    from jaxmotion.evaluation.tracking import mines_after
+    from jaxmotion.training.learner import TrainConfig
     cfg = TrainConfig(iterations=100, chunk=10, hard_negatives_every=5)
     assert [it for it in range(10, 101, 10) if mines_after(it, cfg)] == [50, 100]
     assert not any(mines_after(it, dataclasses.replace(cfg, hard_negatives_every=0)) for it in range(10, 101, 10))

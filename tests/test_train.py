@@ -25,12 +25,13 @@ import numpy as np
 import pytest
 
 from conftest import REPO, jit_enabled
-from jaxmotion import checkpoint as ckpt
+from jaxmotion.training import checkpoint as ckpt
 from jaxmotion import config as C
 from jaxmotion import train as train_mod
+from jaxmotion.training import run as run_mod
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
-from jaxmotion.trainer import DiscConfig, Learner, PPOConfig, TrainConfig
+from jaxmotion.training.learner import DiscConfig, Learner, PPOConfig, TrainConfig
 
 EXPERIMENT = "smoke"
 TIMING_FIELDS = ("steps_per_s",)
@@ -80,7 +81,7 @@ def shared_chunk():
     Yields the list of programs actually built, so a test can check how many were compiled.
     """
     built: dict = {}
-    real = train_mod.make_train_chunk
+    real = run_mod.make_train_chunk
 
     def memo(learner, mesh, chunk, example):
         key = (dataclasses.replace(learner.cfg, resume="", iterations=0, checkpoint_every=0), chunk,
@@ -90,7 +91,7 @@ def shared_chunk():
         return built[key]
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(train_mod, "make_train_chunk", memo)
+        mp.setattr(run_mod, "make_train_chunk", memo)
         yield built
 
 
@@ -194,9 +195,9 @@ TWO_DEVICE_SCRIPT = textwrap.dedent("""
     import json, sys
     from pathlib import Path
     import jax, numpy as np
-    from jaxmotion import checkpoint as ckpt
+    from jaxmotion.training import checkpoint as ckpt
     from jaxmotion.train import train
-    from jaxmotion.trainer import TrainConfig
+    from jaxmotion.training.learner import TrainConfig
 
     src, out = Path(sys.argv[1]), Path(sys.argv[2])
     assert len(jax.devices()) == 2, jax.devices()
@@ -373,11 +374,12 @@ def test_eval_cli_reports_and_writes_everything_from_one_rollout(runs, tmp_path,
     """``python -m jaxmotion.eval <run> --json --html [--video]`` on run A: metrics, the replay
     page, the learning-curve PNGs, and the video where headless GL works; one rollout for all."""
     from jaxmotion import eval as E
-    from jaxmotion import render as RD
+    from jaxmotion.evaluation import imitation as EI
+    from jaxmotion.viz import render as RD
 
     calls = []
-    real = E.rollout
-    monkeypatch.setattr(E, "rollout", lambda *a, **k: calls.append(a[2:4]) or real(*a, **k))
+    real = EI.rollout
+    monkeypatch.setattr(EI, "rollout", lambda *a, **k: calls.append(a[2:4]) or real(*a, **k))
     run_dir = runs["a"].run_dir
     args = [str(run_dir), "--episodes", "2", "--json", str(tmp_path / "m.json"), "--html", str(tmp_path / "r.html")]
     video = RD.gl_backend() is not None
@@ -411,7 +413,7 @@ def test_cli_without_clips_prints_one_clear_line(cli, tmp_path, monkeypatch, cap
     """No clips at $JAXMOTION_DATA: one error line naming the file, how to point JAXMOTION_DATA at
     the clips, a non-zero exit, and no traceback (nor a run folder left behind)."""
     from jaxmotion import bench, eval as E, train as T
-    from jaxmotion import checkpoint as ckpt
+    from jaxmotion.training import checkpoint as ckpt
     from jaxmotion import config as C
 
     monkeypatch.setenv("JAXMOTION_DATA", str(tmp_path / "nowhere"))

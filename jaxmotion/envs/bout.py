@@ -30,7 +30,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from jaxmotion.envs import observations as O
+from jaxmotion.motion import observations as O
 from jaxmotion.envs.humanoid import StepOut, joint_arrays, lowest_point
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import load_motionlib, qpos_qvel, sample, sample_times

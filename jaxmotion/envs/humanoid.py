@@ -27,7 +27,7 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
-from jaxmotion.envs import observations as O
+from jaxmotion.motion import observations as O
 from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
 from jaxmotion.motion.motionlib import (MotionLib, load_motionlib, reweighted, qpos_of, qpos_qvel, sample, sample_times,
                                         sample_windows)

@@ -25,7 +25,8 @@ from typing import Iterable
 
 import numpy as np
 
-from jaxmotion.data import resolve
+from jaxmotion.config.errors import JaxmotionError
+from jaxmotion.motion.data import data_dir, resolve
 from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import Clip, build_clip, select_frames
 from jaxmotion.motion.convert import local_quats_to_dof, reference_body_pos
@@ -45,8 +46,13 @@ _DEEPMIMIC_WIDTH = 8 + sum(w for _, w in _DEEPMIMIC_LAYOUT)  # 44
 _YUP_TO_ZUP = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
 
 
-class MotionFileError(ValueError):
+class MotionFileError(JaxmotionError, ValueError):
     """A motion file could not be read; the message names the file and the problem."""
+
+    @property
+    def hint(self) -> str:
+        return (f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); point it at "
+                f"the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`.")
 
     def __init__(self, path: str | os.PathLike, problem: str):
         self.path = str(path)

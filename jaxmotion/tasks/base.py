@@ -33,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxmotion.envs.observations import LinkFrames
+from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.motion import rotations as R
 
 
@@ -228,6 +228,10 @@ class Task:
     """The no-goal task: pure imitation (no goal features, no task rewards)."""
 
     reward_names: ClassVar[tuple[str, ...]] = ()
+    evaluator: ClassVar[str] = "imitation"
+    mines_clips: ClassVar[bool] = False
+    """Resets pick the clips it tracks, so hard-negative mining can reweight them."""
+    """How `python -m jaxmotion.eval` evaluates a run of this task (a key of `evaluation.EVALUATORS`)."""
     min_reward: ClassVar[float] = 0.0
     """The lowest reward any of this task's objectives pays per step."""
 

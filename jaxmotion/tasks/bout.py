@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmotion.envs.observations import LinkFrames, heading_frame
+from jaxmotion.motion.observations import LinkFrames, heading_frame
 from jaxmotion.motion import rotations as R
 from jaxmotion.physics.arena import SPORTS
 from jaxmotion.tasks.base import Task, TaskStep
@@ -56,6 +56,8 @@ class FencingState:
 
 class BoutTask(Task):
     """What boxing and fencing share: placement, the interaction features, closeness, falls."""
+
+    evaluator = "bouts"
 
     two_player: ClassVar[bool] = True
     sport: ClassVar[str] = ""

@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxmotion.envs.observations import LinkFrames
+from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.tasks.base import TaskStep, root_xy, to_heading
 from jaxmotion.tasks.location import Location, LocationGoal
 

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxmotion.envs.observations import LinkFrames
+from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.tasks.base import Task, TaskStep, heading_angle, root_xy, rotate_z, to_heading
 
 _EPS = 1e-6

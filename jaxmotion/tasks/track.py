@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from jaxmotion.envs import observations as O
+from jaxmotion.motion import observations as O
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import qpos_qvel, sample
 from jaxmotion.tasks.base import Task, TaskStep
@@ -43,6 +43,9 @@ class TrackGoal:
 
 class Track(Task):
     """Track the init clips (see the module docstring)."""
+
+    evaluator = "tracking"
+    mines_clips = True
 
     reward_names = ("imitation",)
 

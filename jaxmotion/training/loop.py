@@ -12,7 +12,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 if TYPE_CHECKING:
-    from jaxmotion.trainer import Learner, TrainState
+    from jaxmotion.training.learner import Learner, TrainState
 
 
 def make_mesh(devices=None) -> Mesh:

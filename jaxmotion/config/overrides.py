@@ -41,8 +41,7 @@ _TRUE_WORDS = ("true", "1", "yes", "on")
 _FALSE_WORDS = ("false", "0", "no", "off")
 
 
-class ConfigError(ValueError):
-    """A config key, value or experiment name that does not fit the config's declared shape."""
+from jaxmotion.config.errors import ConfigError
 
 
 class _ParseError(Exception):
@@ -565,11 +564,3 @@ def _set_mapping_entry(mapping: Any, tp: Any, rest: list[str], raw: str, key: st
         raise _bad_value_error(full, raw, val_tp, str(err)) from err
     items = [(k, value if str(k) == entry else v) for k, v in items]
     return dict(items) if is_dict else tuple(items)
-
-
-# --------------------------------------------------------------------------- experiments
-
-
-# Experiment-file loading lives in jaxmotion.experiments; re-exported here for convenience.
-from jaxmotion.experiments import (  # noqa: E402,F401  (re-export; that module needs the above)
-    ENV_EXPERIMENTS, experiments_root, list_experiments, load, load_experiment)

@@ -1,6 +1,6 @@
 """Incremental learning (Xu et al. 2023, §5, Eq. 10, Alg. 1): a new policy on a frozen meta policy.
 
-The new policy is ``pi(a | s, g, a_meta) = N(mu + w * stop_gradient(a_meta), sigma^2)``: ``a_meta``
+The new policy (``nets.policies.IncrementalPolicy``) is ``pi(a | s, g, a_meta) = N(mu + w * stop_gradient(a_meta), sigma^2)``: ``a_meta``
 is *sampled* from the frozen meta policy on its own slice of the observation (the body state and
 those of its goal blocks that the new task also has, found by name in ``Task.goal_parts``), and
 ``mu``, ``sigma`` and ``w`` (one weight per action DoF) are outputs of the new network. ``a_meta``
@@ -24,22 +24,14 @@ from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
-from jaxmotion import checkpoint as ckpt
+from jaxmotion.config.errors import JaxmotionError
+from jaxmotion.nets.policies import PolicyState
+from jaxmotion.training import checkpoint as ckpt
 
 
-class MetaError(ValueError):
+class MetaError(JaxmotionError, ValueError):
     """The meta policy cannot be used: its run is missing, or it drives or sees something else."""
-
-
-@struct.dataclass
-class PolicyState:
-    """What acting needs, and nothing else: a frozen policy inside ``TrainState.meta``."""
-
-    policy_params: Any
-    obs_norm: Any
-    meta: Any = None
 
 
 def resolve_run(path: str | Path) -> Path:
@@ -74,11 +66,10 @@ class Meta:
     """A frozen meta policy: its learner (network, normaliser layout, own meta) and where its
     observation lies in the new one."""
 
-    def __init__(self, path: str | Path, env):
-        from jaxmotion.eval import load_run  # eval builds on the trainer, which builds on this
-
-        self.run_dir = resolve_run(path)
-        self.experiment, _, self.learner, ts = load_run(self.run_dir)
+    def __init__(self, run_dir: Path, experiment: str, learner, ts, env):
+        """``learner`` and ``ts``: the meta run loaded (``training.runs.make_learner`` does it);
+        ``env``: the new task's environment, whose observation the meta policy reads a slice of."""
+        self.run_dir, self.experiment, self.learner = Path(run_dir), experiment, learner
         menv = self.learner.env
         if menv.action_size != env.action_size or menv.character.num_bodies != env.character.num_bodies:
             raise MetaError(f"meta policy {self.run_dir} drives another character ({menv.action_size} DoF, "

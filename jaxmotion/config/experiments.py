@@ -18,7 +18,8 @@ import types
 from collections.abc import Sequence
 from typing import Any
 
-from jaxmotion.config import ConfigError, apply_overrides
+from jaxmotion.config.errors import ConfigError
+from jaxmotion.config.overrides import apply_overrides
 
 ENV_EXPERIMENTS = "JAXMOTION_EXPERIMENTS"
 

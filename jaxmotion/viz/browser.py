@@ -49,7 +49,7 @@ class _PipeCDP:
         cmd_r, res_w = hi
         argv = [chromium, *CHROMIUM_FLAGS, *extra_flags, f"--user-data-dir={user_data_dir}",
                 "--remote-debugging-pipe", "about:blank"]
-        from jaxmotion.render import quiet_fork
+        from jaxmotion.viz.render import quiet_fork
         # bash moves our pipe ends onto fds 3 and 4, where Chromium expects them.
         with quiet_fork():
             self.proc = subprocess.Popen(

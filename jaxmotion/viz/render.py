@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
+from jaxmotion.envs.reference import align_pose, align_to_start, reference_state
 
 GHOST_PREFIX = "ghost_"
 MARKER_RADIUS = 0.08
@@ -468,7 +469,6 @@ def write_video(frames: np.ndarray | Iterable[np.ndarray], path: str | os.PathLi
 
 # ---- the reference ghost -----------------------------------------------------------------------
 # The alignment and the reference clip are eval's (one definition, so the ghost and the metrics agree).
-from jaxmotion.eval import align_pose, align_to_start, reference_state  # noqa: E402
 
 
 def reference_qpos(learner, group: int, num_frames: int) -> np.ndarray:

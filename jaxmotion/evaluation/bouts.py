@@ -14,11 +14,20 @@ ended the bout (a timeout is a draw). Intervals are bootstrap 95% (2000 resample
 
 from __future__ import annotations
 
+import argparse
+import json
+import sys
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from jaxmotion.physics.arena import PLAYER_RGBA, scenery
+from jaxmotion.training.runs import load_run
+from jaxmotion.viz.plot import learning_curves
+from jaxmotion.viz.render import iter_frames, write_video
+from jaxmotion.viz.replay_html import character_geoms, write_html
 
 
 def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: bool):
@@ -155,8 +164,6 @@ def touch_markers(learner, ro: dict, bout: int = 0, hold: int = 6) -> dict[str, 
 def write_bout_video(learner, ro: dict, path: Path, bout: int = 0) -> Path:
     """Renders one bout: player 0 as the character, player 1 as the second (opaque) figure, the
     ropes, and a sphere over a player's head when it scores."""
-    from jaxmotion.physics.arena import PLAYER_RGBA, scenery
-    from jaxmotion.render import iter_frames, write_video
     n = int(ro["alive"][:, bout].sum())
     q = ro["qpos"][:n, bout].astype(np.float64)
     nq = q.shape[-1] // 2
@@ -173,12 +180,17 @@ def _piste(learner):
     return cfg.task.fencing.piste if cfg.arena.sport == "fencing" else None
 
 
-def main(args, experiment: str, cfg, learner, ts) -> int:
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """This evaluator's flags (its own group of ``python -m jaxmotion.eval``'s)."""
+    g = p.add_argument_group("two-player runs")
+    g.add_argument("--against", type=Path, nargs="+", default=(), metavar="RUN",
+                   help="opponent run folders (default: the run plays itself)")
+    g.add_argument("--bouts", type=int, default=32, help="bouts per opponent (even; default 32)")
+
+
+def run(args, experiment: str, cfg, learner, ts) -> int:
     """``python -m jaxmotion.eval <bout-run> [--against RUN ...] [--bouts N]``: this policy
     against each opponent run (default: itself), deterministic and stochastic."""
-    import json
-    import sys
-    from jaxmotion.eval import load_run
     sport = cfg.env.arena.sport
     opponents = [(str(args.run), None)]
     if args.against:
@@ -213,15 +225,12 @@ def main(args, experiment: str, cfg, learner, ts) -> int:
     if args.html:
         print(f"html: {write_bout_html(learner, first, args.html)} (bout 0)")
     if not args.no_plots:
-        from jaxmotion.eval import _learning_curves
-        _learning_curves(args.run)
+        learning_curves(args.run)
     return 0
 
 
 def write_bout_html(learner, ro: dict, path: Path, bout: int = 0) -> Path:
     """The replay page of one bout: player 0 solid, player 1 as the second (ghost) figure."""
-    from jaxmotion.physics.arena import PLAYER_RGBA
-    from jaxmotion.replay_html import character_geoms, write_html
     env = learner.env
     ch = env.character
     n = int(ro["alive"][:, bout].sum())

@@ -12,8 +12,11 @@ a clip the character cannot use is reported under ``errors``, not as a traceback
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import dataclasses
+import json
+import sys
 from pathlib import Path
 from typing import Sequence
 
@@ -24,6 +27,10 @@ import numpy as np
 from jaxmotion.envs.humanoid import HumanoidEnv
 from jaxmotion.motion.loaders import MotionFileError, load_clips
 from jaxmotion.motion.motionlib import MotionLib
+from jaxmotion.training.run import Hook
+from jaxmotion.viz.plot import learning_curves
+from jaxmotion.viz.render import iter_frames, learner_group_colors, write_video
+from jaxmotion.viz.replay_html import character_geoms, write_html
 
 FAIL_MEAN_M = 0.5
 
@@ -235,6 +242,26 @@ def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise
     return {**summarize(ro, names), "noise": float(noise), "errors": errors}, ro
 
 
+def mines_after(iteration: int, cfg) -> bool:
+    """Whether hard negatives are mined after the chunk that ends at ``iteration``: every
+    ``hard_negatives_every`` chunks counted in iterations, not in this process's chunks, the
+    run's last chunk included, and before that chunk's checkpoint, so that a run stopped at a
+    mining iteration and resumed mines and samples as the uninterrupted one (skipping the last
+    chunk lost the mining at the 1000th iteration of a 1000-iteration run resumed to 3000)."""
+    return bool(cfg.hard_negatives_every) and (iteration // cfg.chunk) % cfg.hard_negatives_every == 0
+
+
+def _mine(learner, ts, end):
+    ts, hard = hard_negative_update(learner, ts, end.run_dir)
+    end.say(f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of "
+            f"{learner.env.init_lib.num_clips} clips failed")
+    return ts
+
+
+MINING = Hook(run=_mine, due=lambda cfg, end: mines_after(end.iteration, cfg), before_checkpoint=True)
+"""Hard-negative mining as a training hook (``TrainConfig.hard_negatives_every``)."""
+
+
 HARD_FILE = "hard_clips.json"
 
 
@@ -268,8 +295,6 @@ def hard_negative_update(learner, ts, run_dir: Path | None = None):
 def write_track_html(learner, ro: dict, path, clip: int = 0):
     """The replay page of one tracked clip (the frames the tracker played): the simulated
     character solid, its reference clip as the ghost."""
-    from jaxmotion.render import learner_group_colors
-    from jaxmotion.replay_html import character_geoms, write_html
     env = learner.env
     ch = env.character
     n = int(np.asarray(ro["played"])[:, clip].sum())
@@ -278,3 +303,43 @@ def write_track_html(learner, ro: dict, path, clip: int = 0):
     return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / env.dt,
                       character_geoms(ch.sword_shield, learner_group_colors(learner)),
                       title="jaxmotion tracker (ghost: the reference clip)")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """This evaluator's flags (its own group of ``python -m jaxmotion.eval``'s)."""
+    g = p.add_argument_group("tracker runs")
+    g.add_argument("--clips", type=Path, nargs="+", default=None, metavar="PATH",
+                   help="clip files or folders to track (default: the run's own clips)")
+    g.add_argument("--noise", type=float, default=0.0, metavar="LEVEL",
+                   help="follow clips perturbed like a video pose estimate (1: the defaults of "
+                        "motion/noise.PoseNoise), scored against the clean clips")
+
+
+def run(args, experiment: str, cfg, learner, ts) -> int:
+    """``python -m jaxmotion.eval <tracker-run>``: every clip once from t = 0."""
+    res, ro = evaluate_clips(learner, ts, args.clips, noise=args.noise, seed=args.seed)
+    res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
+    noisy = f" (inputs perturbed at noise level {args.noise:g})" if args.noise else ""
+    print(f"{experiment}: {res['samples']:,} samples, {res['successes']}/{res['clips_total']} clips tracked{noisy} "
+          f"(mean body error <= 0.5 m throughout), {res.get('success_rate_0.25', float('nan')):.2f} at 0.25 m")
+    if res["clips"]:
+        print(f"  on successful clips: g-MPJPE {res['g_mpjpe_mm']:.1f} mm, MPJPE {res['mpjpe_mm']:.1f} mm, "
+              f"acc {res['acc_mm']:.2f} mm/frame^2, vel {res['vel_mm']:.2f} mm/frame")
+        print(f"  {'clip':<60} {'frames':>6} {'ok':>3} {'g-MPJPE':>8} {'MPJPE':>7}")
+        for c in res["clips"]:
+            print(f"  {Path(c['path']).name[:60]:<60} {c['frames']:>6} {'yes' if c['success'] else 'no':>3} "
+                  f"{c['g_mpjpe_mm']:>8.1f} {c['mpjpe_mm']:>7.1f}")
+    for e in res["errors"]:
+        print(f"  cannot use {e['path']}: {e['error']}", file=sys.stderr)
+    if args.json:
+        args.json.write_text(json.dumps(res, indent=2))
+    if args.video and ro is not None:
+        n = int(ro["played"][:, 0].sum())
+        frames = iter_frames(ro["qpos"][:n, 0].astype(np.float64), ro["ref_qpos"][:n, 0].astype(np.float64),
+                             learner_group_colors(learner))
+        print(f"video: {write_video(frames, args.video, 1.0 / learner.env.dt)} (clip 0, its reference as the ghost)")
+    if args.html and ro is not None:
+        print(f"html: {write_track_html(learner, ro, args.html)} (clip 0, its reference as the ghost)")
+    if not args.no_plots:
+        learning_curves(args.run)
+    return 0

@@ -10,8 +10,9 @@ Objectives: one per body-group discriminator and one per reward the task names
 are standardised per objective and combined with weights ω (Σω = 1, ``tasks.combine_weights``)
 into one PPO surrogate. The observation's body-state part is normalised, the goal part is not.
 ``multi_objective=False`` sums the rewards into one objective with one critic head;
-``popart=False`` trains the critic on raw returns. With ``TrainConfig.meta`` the policy adds a
-frozen meta policy's sampled action, weighted per DoF (incremental learning, ``meta.py``).
+``popart=False`` trains the critic on raw returns. The policy is an object of ``nets/policies.py``
+(a Gaussian MLP, or with ``TrainConfig.meta`` the incremental policy over a frozen one); the learner
+only asks it for its distribution.
 """
 
 from __future__ import annotations
@@ -33,10 +34,10 @@ from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
-from jaxmotion.hparams import DiscConfig, NetConfig, PPOConfig  # noqa: F401  (re-exported)
-from jaxmotion.meta import Meta, PolicyState, resolve_run
+from jaxmotion.training.hparams import DiscConfig, NetConfig, PPOConfig  # noqa: F401  (re-exported)
 from jaxmotion.nets import networks as nets
-from jaxmotion.pool import OpponentPool
+from jaxmotion.nets.policies import GaussianPolicy, IncrementalPolicy, PolicyState
+from jaxmotion.training.pool import OpponentPool
 from jaxmotion.tasks import combine_weights
 
 
@@ -62,7 +63,7 @@ class TrainConfig:
     """Chunks between deterministic evaluations logged as ``eval/<group>/dtw_error_m`` (0: never)."""
     meta: str = ""
     """Incremental learning: a run folder (or a folder of runs: the newest) whose frozen policy
-    is the meta policy (``meta.py``); empty: none."""
+    is the meta policy (``training/meta.py``); empty: none."""
     player_policies: str = "shared"
     """Two-player scenes: 'shared' (one policy, critic and normaliser act for both players, each
     player a sample of its own) or 'separate' (each player has its own policy, critic, PopArt,
@@ -75,7 +76,7 @@ class TrainConfig:
     """With a pool: iterations between snapshots (the oldest replaced once the pool is full)."""
     hard_negatives_every: int = 0
     """Tracking: every this many chunks, run every clip once from t = 0 and reset to the clips it
-    failed more often (``track_eval.hard_negative_update``); 0: never."""
+    failed more often (``evaluation.tracking.MINING``); 0: never."""
 
     @property
     def samples_per_iteration(self) -> int:
@@ -126,7 +127,7 @@ class Transition:
     obs: jax.Array
     action: jax.Array
     log_prob: jax.Array
-    meta_action: jax.Array  # [.., A] the meta policy's sampled action; [.., 0] without one
+    extra: jax.Array  # [.., X] what the policy conditioned on besides obs (``Policy.extra``; a meta action)
     final_obs: jax.Array
     disc_obs: tuple
     terminated: jax.Array
@@ -139,10 +140,12 @@ class Transition:
 class Learner:
     """Static pieces of a run (env, networks, optimisers) and its pure update functions."""
 
-    def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None):
+    def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None, meta=None):
+        """``meta``: the frozen meta policy (``training.meta.Meta``) that ``cfg.meta`` names;
+        ``training.runs.make_learner`` loads it."""
         self.cfg = cfg
-        if cfg.meta:
-            resolve_run(cfg.meta)  # a missing meta run fails before any clip is loaded
+        if bool(cfg.meta) != (meta is not None):
+            raise ValueError("a learner with cfg.meta needs its meta policy: build it with training.runs.make_learner")
         self.env = env if env is not None else make_env(cfg.env)
         self.players = getattr(self.env, "players", 1)
         """Players per environment: each is a sample of its own (one shared policy, self-play)."""
@@ -172,11 +175,11 @@ class Learner:
         self.body_obs_size = self.env.body_obs_size
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
         nc = cfg.net
-        self.meta = Meta(cfg.meta, self.env) if cfg.meta else None
-        self.policy = nets.make_policy_network(
-            self.env.obs_size, self.env.action_size, hidden_sizes=nc.policy_hidden, activation=nc.activation,
-            state_dependent_std=nc.state_dependent_std, init_log_std=nc.init_log_std,
-            meta_size=self.env.action_size if self.meta else 0, meta_weight_bias=nc.meta_weight_bias)
+        self.meta = meta
+        pol = dict(hidden_sizes=nc.policy_hidden, activation=nc.activation, state_dependent_std=nc.state_dependent_std,
+                   init_log_std=nc.init_log_std)
+        self.policy = (IncrementalPolicy(self.env.obs_size, self.env.action_size, meta.act, nc.meta_weight_bias, **pol)
+                       if meta is not None else GaussianPolicy(self.env.obs_size, self.env.action_size, **pol))
         self.critic = nets.make_critic_network(
             self.env.obs_size, self.num_objectives, hidden_sizes=nc.critic_hidden, activation=nc.activation,
             hidden_init_scale=nc.critic_hidden_init)
@@ -185,11 +188,12 @@ class Learner:
                            for d in self.env.disc_obs_sizes())
         pc = cfg.ppo
         self.optimizer = PPO.make_optimizer(pc.max_grad_norm, pc.actor_lr, pc.critic_lr,
-                                            pc.meta_weight_lr if self.meta is not None else 0.0)
+                                            pc.meta_weight_lr if self.policy.weight_size else 0.0)
         self.disc_optimizer = optax.adam(cfg.disc.lr)
         self.hard_negatives = cfg.hard_negatives_every > 0
-        if self.hard_negatives and cfg.env.task.name != "track":
-            raise ValueError("hard_negatives_every needs the track task (env.task.name=track)")
+        if self.hard_negatives and not task.mines_clips:
+            raise ValueError(f"hard_negatives_every needs a task that resets to clips it tracks (env.task.name=track), "
+                             f"not {cfg.env.task.name!r}")
         # The configured loss's floor; the class attribute below is the default (hinge) one.
         self.MIN_REWARD = D.MIN_REWARD[cfg.disc.loss]
         self._check_batch()
@@ -252,7 +256,7 @@ class Learner:
             disc_opt_state=tuple(self.disc_optimizer.init(p) for p in dps),
             disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
             rng=rng, iteration=jnp.zeros((), jnp.int32), **agent,
-            meta=self.meta.state if self.meta else None,
+            meta=None if self.meta is None else self.meta.state,
             clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
             # A copy: the chunk donates the state, which must not delete the library's own array.
             clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None,
@@ -264,18 +268,10 @@ class Learner:
         body = N.normalize(norm, obs[..., :self.body_obs_size], self.cfg.ppo.obs_clip)
         return jnp.concatenate([body, obs[..., self.body_obs_size:]], -1)
 
-    def policy_dist(self, params, nobs: jax.Array, meta_action: jax.Array) -> tuple[jax.Array, jax.Array]:
-        """(mean, log_std) of the policy at normalised observations; with a meta policy the mean
-        is ``mu + w * stop_gradient(meta_action)`` (paper Eq. 10)."""
-        out = self.policy.apply(params, nobs)
-        if self.meta is None:
-            return out
-        mu, log_std, w = out
-        return mu + w * jax.lax.stop_gradient(meta_action), log_std
-
-    def meta_weights(self, ts: TrainState | PolicyState, obs: jax.Array) -> jax.Array:
-        """The per-DoF weights w [B, A] of the meta action at raw observations."""
-        return self.policy.apply(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))[2]
+    def policy_weights(self, ts: TrainState | PolicyState, obs: jax.Array) -> jax.Array:
+        """The policy's composition weights [B, W] at raw observations (``Policy.weights``: the
+        incremental policy's w per DoF; [B, 0] for a plain policy)."""
+        return self.policy.weights(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))
 
     def act(self, ts: TrainState | PolicyState, obs: jax.Array,
             rng: jax.Array | None) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -296,15 +292,12 @@ class Learner:
 
     def _act(self, ts, obs, rng):
         """``act`` for one agent (the shared policy, or one player's own)."""
-        if self.meta is None:
-            a_meta = jnp.zeros(obs.shape[:-1] + (0,), obs.dtype)
-        else:
-            a_meta = self.meta.act(ts.meta, obs, None if rng is None else jax.random.fold_in(rng, 1))
-        mean, log_std = self.policy_dist(ts.policy_params, self.normalize_obs(ts.obs_norm, obs), a_meta)
+        extra = self.policy.extra(ts.meta, obs, None if rng is None else jax.random.fold_in(rng, 1))
+        mean, log_std = self.policy.dist(ts.policy_params, self.normalize_obs(ts.obs_norm, obs), extra)
         if rng is None:
-            return mean, jnp.zeros(mean.shape[:-1]), a_meta
+            return mean, jnp.zeros(mean.shape[:-1]), extra
         action = mean + jnp.exp(log_std) * jax.random.normal(rng, mean.shape)
-        return action, PPO.gaussian_log_prob(mean, log_std, action), a_meta
+        return action, PPO.gaussian_log_prob(mean, log_std, action), extra
 
     def batch_step(self, mesh: Mesh | None = None):
         """``vmap(env.step)``; over a mesh of several devices, each device steps its own shard
@@ -337,7 +330,7 @@ class Learner:
             env_state, out = batch_step(env_state, action, pool)
             if self.pool is not None:
                 opp = self.pool.redraw(opp, jnp.any(out.terminated | out.truncated, -1), jax.random.fold_in(key, 3))
-            tr = Transition(obs=obs, action=action, log_prob=logp, meta_action=a_meta, final_obs=out.final_obs,
+            tr = Transition(obs=obs, action=action, log_prob=logp, extra=a_meta, final_obs=out.final_obs,
                             disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
                             unstable=out.unstable, task_reward=out.task_reward, info=out.info)
             return (env_state, out.obs, opp), tr
@@ -429,11 +422,11 @@ class Learner:
         flat = lambda x: x.reshape((n,) + x.shape[2:])
         _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights)
         nobs = self.normalize_obs(ts.obs_norm, flat(traj.obs))
-        # The policy also sees the meta action it acted on (a [N, 0] array without a meta policy).
-        batch = PPO.PPOBatch(obs={"x": nobs, "meta": flat(traj.meta_action)}, actions=flat(traj.action),
+        # The policy also sees what it conditioned on when acting (a [N, 0] array for a plain policy).
+        batch = PPO.PPOBatch(obs={"x": nobs, "extra": flat(traj.extra)}, actions=flat(traj.action),
                              log_probs=flat(traj.log_prob), advantages=std_adv, returns=flat(returns))
         popart_state = ts.popart if pc.popart else None
-        policy_apply = lambda p, o: self.policy_dist(p, o["x"], o["meta"])
+        policy_apply = lambda p, o: self.policy.dist(p, o["x"], o["extra"])
         critic_apply = lambda p, o: self.critic.apply(p, o["x"])
 
         def loss_fn(params, mb):

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from jaxmotion.meta import PolicyState
+from jaxmotion.nets.policies import PolicyState
 
 
 @struct.dataclass

@@ -102,20 +102,3 @@ def slim(run_dir: Path, out_dir: Path, like: Any) -> int:
     out.close()
     (out_dir / "checkpoints" / str(step) / SLIM_FILE).write_text(json.dumps({"left_out": list(PER_ENV)}))
     return step
-
-
-def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 3 or argv[0] != "slim":
-        print("usage: python -m jaxmotion.checkpoint slim <run-folder> <out-folder>", file=sys.stderr)
-        return 2
-    from jaxmotion.trainer import Learner, TrainConfig
-    _, cfg = read_config(Path(argv[1]), TrainConfig)
-    learner = Learner(cfg)
-    step = slim(Path(argv[1]), Path(argv[2]), learner.init(jax.random.PRNGKey(cfg.seed)))
-    print(f"{argv[2]}: checkpoint {step} without {', '.join(PER_ENV)}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

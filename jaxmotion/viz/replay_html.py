@@ -475,8 +475,8 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     markers. ``policies``: names of the runs that took turns (``ro["acting"]`` indexes them); with
     two or more, the page names the acting one per frame and draws the video's sphere over the
     head in its colour."""
-    from jaxmotion.eval import reference_sequence
-    from jaxmotion.render import (GROUP_PALETTE, align_pose, align_to_start, learner_group_colors, marker_style,
+    from jaxmotion.envs.reference import reference_sequence
+    from jaxmotion.viz.render import (GROUP_PALETTE, align_pose, align_to_start, learner_group_colors, marker_style,
                                   policy_rgba, rollout_markers)
     ch = learner.env.character
     n = int(np.asarray(ro["alive"])[:, episode].sum())

@@ -1,0 +1,90 @@
+"""Policies behind one interface: the learner asks a policy for its action distribution and never
+branches on how the policy is built.
+
+A policy has learnable parameters and may condition on a per-step input of its own (``extra``),
+computed when acting from frozen state the policy carries (``TrainState.meta``) and stored in the
+rollout, because the PPO ratio depends on it:
+
+* ``init(rng) -> params``
+* ``extra(frozen, obs, rng) -> [..., extra_size]``: what the policy conditions on besides the
+  normalised observation, from raw observations (``rng`` None: deterministic).
+* ``dist(params, nobs, extra) -> (mean, log_std)``: the Gaussian over actions.
+* ``weights(params, nobs) -> [..., weight_size]``: the composition weights an evaluator may plot
+  (incremental learning's w per DoF), ``[..., 0]`` for a plain policy.
+
+``GaussianPolicy`` is the MLP of every paper; ``IncrementalPolicy`` is Xu et al. 2023's Eq. 10,
+``mu + w * stop_gradient(a_meta)`` over a frozen meta policy. A multiplicative composer of frozen
+primitives (PHC's MCP), a mixture of experts with recurrent gating (Won et al. 2021; its gate
+state would ride in ``extra``) and progressive columns are further classes of this shape.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from jaxmotion.nets import networks as nets
+
+
+@struct.dataclass
+class PolicyState:
+    """What acting needs, and nothing else: a frozen policy (``TrainState.meta``), an opponent in
+    the pool, or one player's agent."""
+
+    policy_params: Any
+    obs_norm: Any
+    meta: Any = None
+
+
+class GaussianPolicy:
+    """A Gaussian MLP: mean from the network, log std a learned vector or a network head."""
+
+    extra_size = 0
+    weight_size = 0
+
+    def __init__(self, obs_size: int, action_size: int, **net_kwargs: Any):
+        self.net = nets.make_policy_network(obs_size, action_size, **net_kwargs)
+
+    def init(self, rng: jax.Array) -> Any:
+        return self.net.init(rng)
+
+    def extra(self, frozen: Any, obs: jax.Array, rng: jax.Array | None) -> jax.Array:
+        return jnp.zeros(obs.shape[:-1] + (0,), obs.dtype)
+
+    def dist(self, params: Any, nobs: jax.Array, extra: jax.Array) -> tuple[jax.Array, jax.Array]:
+        return self.net.apply(params, nobs)
+
+    def weights(self, params: Any, nobs: jax.Array) -> jax.Array:
+        return jnp.zeros(nobs.shape[:-1] + (0,), nobs.dtype)
+
+
+class IncrementalPolicy:
+    """``N(mu + w * stop_gradient(a_meta), sigma^2)`` (Xu et al. 2023, Eq. 10): ``a_meta`` is
+    sampled from a frozen meta policy on its slice of the observation; ``mu``, ``sigma`` and ``w``
+    (sigmoid, one per DoF, starting at ``meta_weight_bias``) are outputs of the new network.
+
+    ``meta_act(frozen, obs, rng)`` is the frozen policy's action from raw observations of the new
+    task (``training.meta.Meta.act``)."""
+
+    def __init__(self, obs_size: int, action_size: int, meta_act: Callable, meta_weight_bias: float,
+                 **net_kwargs: Any):
+        self.net = nets.make_policy_network(obs_size, action_size, meta_size=action_size,
+                                            meta_weight_bias=meta_weight_bias, **net_kwargs)
+        self.meta_act = meta_act
+        self.extra_size = self.weight_size = action_size
+
+    def init(self, rng: jax.Array) -> Any:
+        return self.net.init(rng)
+
+    def extra(self, frozen: Any, obs: jax.Array, rng: jax.Array | None) -> jax.Array:
+        return self.meta_act(frozen, obs, rng)
+
+    def dist(self, params: Any, nobs: jax.Array, extra: jax.Array) -> tuple[jax.Array, jax.Array]:
+        mu, log_std, w = self.net.apply(params, nobs)
+        return mu + w * jax.lax.stop_gradient(extra), log_std
+
+    def weights(self, params: Any, nobs: jax.Array) -> jax.Array:
+        return self.net.apply(params, nobs)[2]

@@ -1,0 +1,80 @@
+"""Run folders: where a run is written, and rebuilding a learner and its state from one.
+
+A run folder holds ``config.json`` (the experiment's name and its full config) and orbax
+checkpoints; ``load_run`` needs nothing else, so run folders written by earlier versions of the
+code load as long as their config's fields still exist.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+from jaxmotion.envs.bout import make_env
+from jaxmotion.envs.humanoid import HumanoidEnv
+from jaxmotion.training import checkpoint as ckpt
+from jaxmotion.training.learner import Learner, TrainConfig, TrainState
+from jaxmotion.training.meta import Meta, resolve_run
+
+
+def new_run_dir(experiment: str, root: Path = Path("runs")) -> Path:
+    """``runs/<experiment>/<timestamp>`` (with a suffix when that exists already)."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    d = root / experiment / stamp
+    n = 1
+    while d.exists():
+        d = root / experiment / f"{stamp}-{n}"
+        n += 1
+    return d
+
+
+def make_learner(cfg: TrainConfig, env: HumanoidEnv | None = None) -> Learner:
+    """The learner of ``cfg``, with the frozen meta policy its ``meta`` names loaded from its run
+    (incremental learning; a meta run may itself be incremental)."""
+    if not cfg.meta:
+        return Learner(cfg, env)
+    meta_dir = resolve_run(cfg.meta)  # a missing meta run fails before any clip is loaded
+    env = env if env is not None else make_env(cfg.env)
+    experiment, _, meta_learner, meta_ts = load_run(meta_dir)
+    return Learner(cfg, env, meta=Meta(meta_dir, experiment, meta_learner, meta_ts, env))
+
+
+def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
+    """(experiment, config, learner, restored state) of a run folder."""
+    experiment, cfg = ckpt.read_config(run_dir, TrainConfig)
+    learner = make_learner(cfg)
+    like = learner.init(jax.random.PRNGKey(cfg.seed))
+    mgr = ckpt.manager(run_dir)
+    ts, _ = ckpt.restore(mgr, like)
+    mgr.close()
+    return experiment, cfg, learner, ts
+
+
+def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:
+    """Why the policies of these runs cannot take turns on one character (their observation or
+    action sizes differ from the first run's), or None."""
+    (first, l0), sizes = runs[0], lambda lr: (lr.env.obs_size, lr.env.action_size)
+    for r, lr in runs[1:]:
+        if sizes(lr) != sizes(l0):
+            return (f"{r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
+                    f"{first} has {l0.env.obs_size}/{l0.env.action_size}: they cannot take turns")
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 3 or argv[0] != "slim":
+        print("usage: python -m jaxmotion.training.runs slim <run-folder> <out-folder>", file=sys.stderr)
+        return 2
+    _, cfg = ckpt.read_config(Path(argv[1]), TrainConfig)
+    learner = make_learner(cfg)
+    step = ckpt.slim(Path(argv[1]), Path(argv[2]), learner.init(jax.random.PRNGKey(cfg.seed)))
+    print(f"{argv[2]}: checkpoint {step} without {', '.join(ckpt.PER_ENV)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
