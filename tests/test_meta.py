@@ -16,7 +16,9 @@ from jaxmotion.envs.humanoid import EnvConfig, GroupConfig
 from jaxmotion.training.meta import MetaError, goal_index, resolve_run
 from jaxmotion.tasks import TaskConfig
 from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
-from jaxmotion.training.runs import make_learner
+from jaxmotion.training.runs import make_learner, spaces_mismatch
+from jaxmotion.evaluation.imitation import meta_weight_summary
+from jaxmotion.evaluation.rollout import rollout
 
 WALK = ("compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",)
 AIM = ("compositemotion/aiming/lafan1_aiming2_subject3_140_970.json",)
@@ -36,7 +38,7 @@ def meta_run(tmp_path_factory, data_dir):
     run = tmp_path_factory.mktemp("runs") / "goal" / "location_walk" / "20260101-000000"
     cfg = _cfg("location", (GroupConfig(name="full", motions=WALK),))
     with jit_enabled():
-        learner = Learner(cfg)
+        learner = make_learner(cfg)
         ts = learner.init(jax.random.PRNGKey(7))
     # A policy whose actions are far from zero, so that "follows the meta policy" is visible.
     mean = ts.policy_params["params"]["mean"]
@@ -115,9 +117,6 @@ def test_rollout_stores_the_meta_action_and_updates_leave_the_meta_policy_frozen
 
 
 def test_eval_reports_and_plots_the_meta_weights(incremental, tmp_path):
-    from jaxmotion.evaluation.imitation import meta_weight_summary
-    from jaxmotion.evaluation.rollout import rollout
-    from jaxmotion.training.runs import spaces_mismatch
     from jaxmotion.viz.plot import plot_meta_weights
 
     learner, ts = incremental
@@ -136,7 +135,7 @@ def test_meta_policy_with_another_history_length_is_a_clear_error(meta_run):
     cfg = _cfg("aim+location", (GroupConfig(name="lower", motions=WALK),), meta=str(meta_run))
     cfg = dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, policy_frames=3))
     with jit_enabled(), pytest.raises(ValueError, match="frames of body state"):
-        Learner(cfg)
+        make_learner(cfg)
 
 
 def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(incremental):
@@ -190,7 +189,7 @@ def test_meta_weight_head_gets_its_own_learning_rate(incremental, meta_run):
     cfg = dataclasses.replace(learner.cfg, ppo=dataclasses.replace(learner.cfg.ppo, meta_weight_lr=1e-2))
     params = {"actor": ts.policy_params, "critic": ts.critic_params}
     grads = jax.tree.map(jnp.ones_like, params)
-    for lr_w, lrn in ((1e-2, Learner(cfg)), (learner.cfg.ppo.actor_lr, learner)):
+    for lr_w, lrn in ((1e-2, make_learner(cfg)), (learner.cfg.ppo.actor_lr, learner)):
         updates, _ = lrn.optimizer.update(grads, lrn.optimizer.init(params), params)
         actor = updates["actor"]["params"]
         for name, leaf in actor.items():

@@ -17,7 +17,7 @@ from conftest import REPO, jit_enabled
 from jaxmotion.viz import play
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
-from jaxmotion.tasks.base import HeadingConfig, TaskConfig
+from jaxmotion.tasks import HeadingConfig, TaskConfig
 from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
 

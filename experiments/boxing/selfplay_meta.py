@@ -1,16 +1,15 @@
 """Boxing self-play on top of a frozen imitation policy (`imitate/boxing`): the shared policy is
-the incremental one of paper Xu et al. §5 (`meta.py`): each player's action is mu + w * a_meta,
-a_meta sampled from the imitation policy on the player's own body state, w one weight per DoF
-starting at 0.95 with its own learning rate 1e-3. So the boxers start as the imitation policy
-(standing, stepping, punching) instead of a random Gaussian MLP whose bouts all ended by a fall
-within a second (`boxing/selfplay`). Same ring, rules, ω and PPO settings as `boxing/selfplay`.
+the incremental one of paper Xu et al. §5 (`training/meta.py`): each player's action is
+mu + w * a_meta, a_meta sampled from the imitation policy on the player's own body state, w one
+weight per DoF starting at 0.95 with its own learning rate 1e-3 (ours). So the boxers start as the
+imitation policy (standing, stepping, punching) instead of a random Gaussian MLP whose bouts all
+ended by a fall within a second (`boxing/selfplay`). Same ring, rules, ω and PPO settings as
+`boxing/selfplay`.
 
 Train the imitation policy first (`make train EXP=imitate/boxing`); `meta` takes its newest run,
 or name one: `make train EXP=boxing/selfplay_meta ARGS="meta=runs/imitate/boxing/<stamp>"`.
-
-Measured on the 2-core CPU (6000 iterations, 3.07M player-steps, 29 min): r_close 0.16 -> 0.45,
-distance 1.77 -> 1.1 m, hits in 1% -> 5-8% of steps; eval: bouts of 2.3 s, each ended by a fall,
-26 of 32 with damage (README, Two players)."""
+Results: docs/results.md, "Boxing on an imitation policy".
+"""
 
 import dataclasses
 

@@ -7,13 +7,8 @@ Two body groups: the arms (both upper arms, forearms and hands; torso anchor; re
 as the authors. Location settings for juggling (notes §1): radius 0.75 m, speed 1-1.2 m/s,
 timers 90-149 steps, goals within ±60° at v0 = 1 m/s, no overshoot termination. The balls are
 free bodies of the MuJoCo scene (r 0.05 m, 57 g, no bounce; they pass through the body and each
-other): see `tasks/juggle.py`.
-
-Measured on the 2-core CPU (2026-12-02; `make train EXP=goal/juggle+walk ARGS="iterations=400
-eval_every=0"`, 1.64M samples in 13.7 min, then `python -m jaxmotion.eval <run> --episodes 8`
-and the same with `--untrained`): catches per throw 7/19 (untrained 0/4), longest streak 1,
-release-speed error 3.06 m/s (untrained 2.85), every episode a fall (1.24 s; untrained 0.82 s).
-A start, far from the paper's juggling walk, which needs the 10^8-sample budget."""
+other): see `tasks/juggle.py`. Results: docs/results.md, "Juggling while walking".
+"""
 
 from _common import WALK, GroupConfig, LocationConfig, TaskConfig, goal
 

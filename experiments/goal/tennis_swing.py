@@ -13,15 +13,7 @@ every 2 s, tossed beside the character on its racket side; a hit pays 0.5 min(sp
 + 0.5 exp(-d^2 / 8) for landing d metres from the target, once, when the ball leaves the racket;
 a reach term (racket head to ball, until the hit) is our shaping. ω 0.25 upper / 0.25 lower /
 0.35 hit / 0.15 reach. 240-Hz physics: at 120 Hz the ball passes through the racket
-(`physics/props.py`). 10-s episodes: five balls each.
-
-Measured on the 2-core CPU (2026-12-04; `make train EXP=goal/tennis_swing ARGS="iterations=750"`,
-3.07M samples in 38 min beside other runs, then resumed to 1500; `python -m jaxmotion.eval <run>
---episodes 16`): at 3.07M the character stays up (fall rate 0.06, episodes 9.4 s) and hits 11 of
-75 fed balls (15%), outgoing 5.8 m/s, landing 12.8 m from the target (not yet aimed); at 6.14M
-13 of 64 (20%), 5.0 m/s, 12.6 m, fall rate 0.31; DTW upper 0.21 m, lower 0.08 m (lower coverage
-100%, upper 61%). Untrained: every episode falls within 0.95 s, before its first ball is due.
-The video shows the racket swung through the ball's path; where the ball goes is not learned yet.
+(`physics/props.py`). 10-s episodes: five balls each. Results: docs/results.md, "Tennis swing".
 """
 
 import dataclasses

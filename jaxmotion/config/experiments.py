@@ -29,7 +29,7 @@ def experiments_root() -> pathlib.Path:
     env = os.environ.get(ENV_EXPERIMENTS)
     if env:
         return pathlib.Path(env).expanduser().resolve()
-    return pathlib.Path(__file__).resolve().parents[1] / "experiments"
+    return pathlib.Path(__file__).resolve().parents[2] / "experiments"
 
 
 def list_experiments(root: pathlib.Path | str | None = None) -> list[str]:

@@ -138,7 +138,7 @@ def local_quats_to_dof(ch: Character, local_quat: np.ndarray, fit_ranges: bool =
             cands = range_wrap(cands, lo[idx][:, None], hi[idx][:, None])
             choice = viterbi_branch(cands, lo[idx], hi[idx])
         else:
-            choice = np.zeros((T, len(bodies)), np.int64)
+            choice = np.zeros((T, len(triples)), np.int64)
         chosen = np.take_along_axis(cands, choice[:, :, None, None], axis=2)[:, :, 0]
         dof[:, idx.reshape(-1)] = chosen.reshape(T, -1)
     return dof

@@ -20,7 +20,7 @@ vmapped with the environment:
 
 The learner makes one objective (critic head, PopArt statistics, weight ω) per reward name, next
 to one per discriminator; it never looks at which task it runs. Tasks are found by name in
-``tasks.TASKS``.
+``tasks.TASKS``, each with its settings beside it in its own module.
 """
 
 from __future__ import annotations
@@ -35,182 +35,6 @@ from flax import struct
 
 from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.motion import rotations as R
-
-
-@dataclasses.dataclass(frozen=True)
-class LocationConfig:
-    """Target location (defaults: the authors' walk/crouch settings, notes §1)."""
-
-    radius: float = 0.5
-    """A goal counts as reached inside this distance (m); the reward is then 1."""
-    speed_range: tuple[float, float] = (1.2, 1.5)
-    """Clip of the required speed (m/s) the reward asks for."""
-    timer_range: tuple[int, int] = (90, 150)
-    """Control steps a goal lasts: U{lo .. hi-1}."""
-    v0_mean: float = 1.0
-    v0_std: float = 0.25
-    v0_range: tuple[float, float] = (0.0, 1.25)
-    """The goal's distance is v0 * timer / 30 with v0 from this truncated normal (m/s)."""
-    sharp_turns: bool = True
-    """True: a goal in any direction; False: within ±60 degrees of the current heading."""
-    max_overshoot: float = 3.0
-    """End the episode when the distance to the goal has grown by this much (m) since it was set
-    (0 disables)."""
-    weight: float = 0.5
-    """ω of the location objective."""
-
-
-@dataclasses.dataclass(frozen=True)
-class HeadingConfig:
-    """Target heading and speed (the paper gives no formula; ours is in ``tasks/location.py``)."""
-
-    speed_range: tuple[float, float] = (1.0, 1.5)
-    """Target speed, uniform in this range (m/s)."""
-    turn_deg: float = 90.0
-    """Each new heading is the current facing ± U(0, turn_deg)."""
-    timer_range: tuple[int, int] = (90, 150)
-    """Control steps a heading lasts: U{lo .. hi-1}."""
-    settle_steps: int = 30
-    """Metrics skip this many steps after each new heading (time to turn)."""
-    weight: float = 0.5
-
-
-@dataclasses.dataclass(frozen=True)
-class AimConfig:
-    """Aiming: the right forearm points along a target direction (notes §1)."""
-
-    yaw_deg: tuple[float, float] = (0.0, 45.0)
-    """Aim direction: the horizontal root-to-target direction turned left by U(yaw range)..."""
-    pitch_deg: tuple[float, float] = (0.0, 30.0)
-    """... and up by U(pitch range)."""
-    weight: float = 0.25
-    """ω of the aim objective."""
-
-
-@dataclasses.dataclass(frozen=True)
-class JuggleConfig:
-    """Juggling three balls (``tasks/juggle.py``; the schedule and reward are the authors')."""
-
-    weight: float = 0.6
-    """ω of the juggling reward (the authors': 0.6 juggling, 0.1 location, 0.06 arms, 0.24 body)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class TennisConfig:
-    """Tennis swing (``tasks/tennis.py``; the paper's formula is in an appendix we do not have,
-    so this one is ours): a ball is fed beside the character every ``feed_every`` steps; hitting
-    it pays for its outgoing speed and for where it would land."""
-
-    feed_every: int = 60
-    """Control steps between balls (60: 2 s)."""
-    feed_forward: tuple[float, float] = (0.55, 0.85)
-    feed_right: tuple[float, float] = (0.35, 0.65)
-    feed_height: tuple[float, float] = (0.9, 1.3)
-    """Where a ball appears, from the root's ground point in its heading frame (m): ahead, to the
-    right (the racket side), above the floor; uniform in each range."""
-    feed_up_speed: tuple[float, float] = (0.5, 1.5)
-    """Its vertical speed upwards (m/s), as if tossed; no horizontal speed."""
-    target_ahead: tuple[float, float] = (8.0, 12.0)
-    target_side: tuple[float, float] = (-2.0, 2.0)
-    """The landing target, drawn with each ball: ahead and to the left (m) in the heading frame."""
-    target_speed: float = 10.0
-    """Outgoing speed that earns the full speed half of the hit reward (m/s)."""
-    landing_sigma: float = 2.0
-    """Landing half of the hit reward: exp(-d^2 / (2 sigma^2)), d the landing error (m)."""
-    touch_force: float = 1.0
-    """A racket contact of at least this normal force (N) is a hit."""
-    weight: float = 0.35
-    """ω of the hit reward."""
-    reach_weight: float = 0.15
-    """ω of the reach reward exp(-4 d^2), d the racket head's distance to the ball before it is
-    hit (our shaping; 0 leaves the paper's outcome-only reward)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class TrackConfig:
-    """Motion tracking (Perpetual Humanoid Control; notes phc.md §0-§3): follow the init clips
-    frame by frame. Defaults: the authors' code."""
-
-    goal: str = "rotation"
-    """'rotation' (24 features per body) or 'keypoint' (positions and velocities only, 9)."""
-    termination: str = "max"
-    """'max': any body but the feet farther than ``termination_distance`` from its reference
-    (the code, 0.25 m); 'mean': the mean over those bodies (the paper, 0.5 m)."""
-    termination_distance: float = 0.25
-    exponents: tuple[float, float, float, float] = (100.0, 10.0, 0.1, 0.1)
-    """k of exp(-k * mean squared error) for position, rotation angle, linear and angular velocity."""
-    term_weights: tuple[float, float, float, float] = (0.5, 0.3, 0.1, 0.1)
-    """Weights of those four terms (they sum to 1: a perfect frame pays 1)."""
-    weight: float = 0.5
-    """ω of the imitation objective (the paper's 0.5 task / 0.5 motion prior)."""
-    residual: bool = False
-    """False: the PD target is the joint range's mid-point + the action (the authors' code).
-    True: it is the reference's joint angles one control step ahead (clamped to the joint ranges)
-    + the action, so an untrained policy already servos towards the clip and learning only has
-    to add the corrections that keep it balanced."""
-    energy_coef: float = 0.0005
-    """The energy penalty -c * sum_j |tau_j qdot_j| (linear mechanical power, the authors' code;
-    the paper prints the square) added to the imitation reward (the scene reports no power on an
-    episode's first 3 steps); 0 disables it."""
-
-
-@dataclasses.dataclass(frozen=True)
-class BoxingConfig:
-    """Boxing rules and rewards (Won et al. 2021, Eqs. 1-5; the authors' variants as switches,
-    notes won2021.md §0 and §3). Defaults: the paper."""
-
-    damage_clip: float = 200.0
-    """Each side's scoring contact force is clipped here (N) before the difference is taken."""
-    touch_threshold: float = 1.0
-    """Scoring forces below this (N) count as no touch."""
-    close_k: float = 3.0
-    close_squared: bool = True
-    """r_close = exp(-k d^2) (the paper) or exp(-k d) (the code); d: the nearest glove-target distance."""
-    facing_k: float = 5.0
-    energy_deadzone: float = 100.0
-    """r_energy = -gate(l) * max(0, |dq_t - dq_{t-1}|^2 - deadzone), joint velocities per control
-    step (the code's form of the paper's angular accelerations); gate(l) = 1 - exp(-50 max(0, l - 1)^2)."""
-    stuck_distance: float = 0.4
-    stuck_seconds: float = 5.0
-    rope_margin: float = 0.15
-    """'Near the ropes': the root within this of the ring's inner edge (m)."""
-    rope_seconds: float = 5.0
-    start_distance: tuple[float, float] = (0.7, 3.0)
-    weights: tuple[float, float, float, float, float] = (1.0, 0.2, 0.05, 0.001, 30.0)
-    """ω of (match, close, facing, energy, penalty): the paper's Table 1."""
-
-
-@dataclasses.dataclass(frozen=True)
-class FencingConfig:
-    """Fencing rules and rewards (Won et al. 2021, Eq. 7; notes won2021.md §3). Defaults: the paper."""
-
-    touch_threshold: float = 1.0
-    """A touch: blade contact on a target with at least this normal force (N)."""
-    counter_seconds: float = 1.0
-    """A counter-touch within this long after the first touch makes the bout a draw."""
-    piste: tuple[float, float] = (12.0, 2.0)
-    """Length and width of the piste (m): leaving it is a penalty that ends the bout."""
-    win_reward: float = 1.0
-    """r_match paid once at the result: +win to the winner, -win to the loser, 0 for a draw (the code: 10)."""
-    close_k: float = 3.0
-    start_distance: float = 4.0
-    weights: tuple[float, float, float] = (1.0, 0.2, 30.0)
-    """ω of (match, close, penalty)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class TaskConfig:
-    """Which task the scene runs (a name in ``tasks.TASKS``) and the settings of each."""
-
-    name: str = "imitate"
-    location: LocationConfig = LocationConfig()
-    heading: HeadingConfig = HeadingConfig()
-    aim: AimConfig = AimConfig()
-    track: TrackConfig = TrackConfig()
-    juggle: JuggleConfig = JuggleConfig()
-    boxing: BoxingConfig = BoxingConfig()
-    fencing: FencingConfig = FencingConfig()
-    tennis: TennisConfig = TennisConfig()
 
 
 @struct.dataclass
@@ -228,6 +52,9 @@ class Task:
     """The no-goal task: pure imitation (no goal features, no task rewards)."""
 
     reward_names: ClassVar[tuple[str, ...]] = ()
+    settings: ClassVar[tuple[tuple[str, type], ...]] = ()
+    """The task's settings: (field of ``TaskConfig``, frozen dataclass) pairs; tasks may share a
+    field (aim+location reads ``location`` too). ``TaskConfig`` is assembled from these."""
     evaluator: ClassVar[str] = "imitation"
     mines_clips: ClassVar[bool] = False
     """Resets pick the clips it tracks, so hard-negative mining can reweight them."""
@@ -235,7 +62,8 @@ class Task:
     min_reward: ClassVar[float] = 0.0
     """The lowest reward any of this task's objectives pays per step."""
 
-    def __init__(self, cfg: TaskConfig, env):
+    def __init__(self, cfg, env):
+        """``cfg``: the scene's ``TaskConfig`` (its ``name`` and every registered task's settings)."""
         self.cfg = cfg
         self.env = env
 

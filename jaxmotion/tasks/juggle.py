@@ -40,6 +40,7 @@ location task's.
 
 from __future__ import annotations
 
+import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -47,7 +48,15 @@ from flax import struct
 
 from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.tasks.base import TaskStep, root_xy, to_heading
-from jaxmotion.tasks.location import Location, LocationGoal
+from jaxmotion.tasks.location import Location, LocationConfig, LocationGoal
+
+
+@dataclasses.dataclass(frozen=True)
+class JuggleConfig:
+    """Juggling three balls (``tasks/juggle.py``; the schedule and reward are the authors')."""
+
+    weight: float = 0.6
+    """ω of the juggling reward (the authors': 0.6 juggling, 0.1 location, 0.06 arms, 0.24 body)."""
 
 G = 9.81
 RADIUS = 0.05
@@ -174,6 +183,8 @@ def hand_rewards(b: Balls, thrown: jax.Array, hands: jax.Array, hand_vel: jax.Ar
 
 class JuggleLocation(Location):
     """Juggle three balls while going to a target location."""
+
+    settings = (("location", LocationConfig), ("juggle", JuggleConfig))
 
     reward_names = ("juggling", "location")
     goal_parts = (("location", 4), ("juggling", 19))

@@ -21,6 +21,7 @@ r_aim = exp(-2 |e + L d* - h| / L); inside the goal radius it is clip(forearm_z 
 
 from __future__ import annotations
 
+import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,6 +29,56 @@ from flax import struct
 
 from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.tasks.base import Task, TaskStep, heading_angle, root_xy, rotate_z, to_heading
+
+
+@dataclasses.dataclass(frozen=True)
+class LocationConfig:
+    """Target location (defaults: the authors' walk/crouch settings, notes §1)."""
+
+    radius: float = 0.5
+    """A goal counts as reached inside this distance (m); the reward is then 1."""
+    speed_range: tuple[float, float] = (1.2, 1.5)
+    """Clip of the required speed (m/s) the reward asks for."""
+    timer_range: tuple[int, int] = (90, 150)
+    """Control steps a goal lasts: U{lo .. hi-1}."""
+    v0_mean: float = 1.0
+    v0_std: float = 0.25
+    v0_range: tuple[float, float] = (0.0, 1.25)
+    """The goal's distance is v0 * timer / 30 with v0 from this truncated normal (m/s)."""
+    sharp_turns: bool = True
+    """True: a goal in any direction; False: within ±60 degrees of the current heading."""
+    max_overshoot: float = 3.0
+    """End the episode when the distance to the goal has grown by this much (m) since it was set
+    (0 disables)."""
+    weight: float = 0.5
+    """ω of the location objective."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HeadingConfig:
+    """Target heading and speed (the paper gives no formula; ours is in ``tasks/location.py``)."""
+
+    speed_range: tuple[float, float] = (1.0, 1.5)
+    """Target speed, uniform in this range (m/s)."""
+    turn_deg: float = 90.0
+    """Each new heading is the current facing ± U(0, turn_deg)."""
+    timer_range: tuple[int, int] = (90, 150)
+    """Control steps a heading lasts: U{lo .. hi-1}."""
+    settle_steps: int = 30
+    """Metrics skip this many steps after each new heading (time to turn)."""
+    weight: float = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class AimConfig:
+    """Aiming: the right forearm points along a target direction (notes §1)."""
+
+    yaw_deg: tuple[float, float] = (0.0, 45.0)
+    """Aim direction: the horizontal root-to-target direction turned left by U(yaw range)..."""
+    pitch_deg: tuple[float, float] = (0.0, 30.0)
+    """... and up by U(pitch range)."""
+    weight: float = 0.25
+    """ω of the aim objective."""
 
 _EPS = 1e-6
 
@@ -55,6 +106,8 @@ def velocity_reward(v: jax.Array, v_star: jax.Array, s_star: jax.Array) -> jax.A
 
 class Location(Task):
     """Walk (run, crouch) to a target location before its timer runs out."""
+
+    settings = (("location", LocationConfig),)
 
     reward_names = ("location",)
 
@@ -142,6 +195,8 @@ class HeadingGoal:
 class Heading(Task):
     """Go along a target heading at a target speed (our definition, see the module docstring)."""
 
+    settings = (("heading", HeadingConfig),)
+
     reward_names = ("heading",)
 
     goal_parts = (("heading", 3),)
@@ -208,6 +263,8 @@ class AimGoal:
 
 class AimLocation(Location):
     """Go to a location while pointing the right forearm along a target direction."""
+
+    settings = (("location", LocationConfig), ("aim", AimConfig))
 
     reward_names = ("location", "aim")
 

@@ -5,7 +5,7 @@ full typed config, enough to rebuild everything), ``checkpoints/<iteration>/`` w
 (atomically: a temporary directory renamed on completion, so a killed run never leaves a
 half-written checkpoint that looks valid), ``metrics.jsonl`` and TensorBoard events.
 
-``python -m jaxmotion.checkpoint slim <run-folder> <out-folder>`` writes a copy of a run whose
+``python -m jaxmotion.training.runs slim <run-folder> <out-folder>`` writes a copy of a run whose
 latest checkpoint leaves out the per-environment state (``env_state``, ``obs``): at 4096 MJX
 environments that state is ~40 kB per environment, most of the checkpoint. The copy evaluates and
 resumes like the run (its ``SLIM_FILE`` lists what is missing; ``restore`` keeps the freshly reset
@@ -70,13 +70,16 @@ def save(mgr: ocp.CheckpointManager, step: int, state: Any) -> None:
     mgr.wait_until_finished()
 
 
-def restore(mgr: ocp.CheckpointManager, like: Any, step: int | None = None) -> tuple[Any, int]:
-    """Restores the latest (or given) checkpoint into the structure and shardings of ``like``."""
+def restore(mgr: ocp.CheckpointManager, like: Any, step: int | None = None,
+            skip: tuple[str, ...] = ()) -> tuple[Any, int]:
+    """Restores the latest (or given) checkpoint into the structure and shardings of ``like``;
+    leaves whose key starts with one of ``skip`` (and those a slim checkpoint left out) keep
+    ``like``'s values."""
     step = mgr.latest_step() if step is None else step
     if step is None:
         raise FileNotFoundError(f"no checkpoint in {mgr.directory}")
     slim = Path(mgr.directory) / str(step) / SLIM_FILE
-    skip = tuple(json.loads(slim.read_text())["left_out"]) if slim.exists() else ()
+    skip = tuple(skip) + (tuple(json.loads(slim.read_text())["left_out"]) if slim.exists() else ())
     abstract = {k: ocp.utils.to_shape_dtype_struct(x) for k, x in _flat(like).items() if not k.startswith(skip)}
     flat = mgr.restore(step, args=ocp.args.StandardRestore(abstract))
     paths, treedef = jax.tree_util.tree_flatten_with_path(like)

@@ -58,6 +58,9 @@ class TrainConfig:
     """Chunks between checkpoints."""
     resume: str = ""
     """A run folder to continue from its latest checkpoint."""
+    init_from: str = ""
+    """A run folder or ``pretrained/<name>`` entry whose parameters, optimiser and statistics (and
+    iteration count) a new run starts from; ``iterations`` counts from that run's start."""
     eval_episodes: int = 4
     eval_every: int = 0
     """Chunks between deterministic evaluations logged as ``eval/<group>/dtw_error_m`` (0: never)."""

@@ -22,7 +22,7 @@ import numpy as np
 from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.training.learner import TrainConfig, TrainState
 from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
-from jaxmotion.training.runs import make_learner, new_run_dir
+from jaxmotion.training.runs import init_from, make_learner, new_run_dir
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,12 +118,16 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
                **({"threads": phys.nthread} if phys.name == "mujoco" else {})}
     if progress:
         print(f"physics backend: {phys.name} ({', '.join(f'{k} {v}' for k, v in backend.items() if k != 'backend')})")
-    if not cfg.resume:
-        ckpt.write_config(run_dir, experiment, dataclasses.replace(cfg, resume=""), resolved={"physics": backend})
     mesh = make_mesh()
     if cfg.ppo.num_envs % mesh.size:
         raise ValueError(f"num_envs ({cfg.ppo.num_envs}) must be divisible by the device count ({mesh.size})")
     ts = shard_state(learner.init(jax.random.PRNGKey(cfg.seed)), mesh)
+    if cfg.init_from:  # before the run folder exists: an entry that does not fit leaves nothing behind
+        ts = init_from(learner, ts, cfg.init_from)
+        if progress:
+            print(f"init_from {cfg.init_from}: starting at iteration {int(ts.iteration)}")
+    if not cfg.resume:
+        ckpt.write_config(run_dir, experiment, dataclasses.replace(cfg, resume=""), resolved={"physics": backend})
     mgr = ckpt.manager(run_dir)
     metrics_path = run_dir / "metrics.jsonl"
     if cfg.resume and mgr.latest_step() is not None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import jax
 
+from jaxmotion.config.errors import JaxmotionError
 from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import HumanoidEnv
 from jaxmotion.training import checkpoint as ckpt
@@ -51,6 +52,31 @@ def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
     ts, _ = ckpt.restore(mgr, like)
     mgr.close()
     return experiment, cfg, learner, ts
+
+
+def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
+    """``ts`` with everything but the environments taken from the latest checkpoint of the run
+    (or ``pretrained/<name>`` entry) at ``path``: parameters, optimiser states, observation,
+    discriminator and PopArt statistics, and the iteration count, so a long training goes on
+    where that run stopped. The networks must have the same shapes (same experiment settings)."""
+    path = Path(path)
+    if not (path / ckpt.CONFIG_FILE).exists():
+        raise InitFromError(f"init_from={path}: not a run folder or pretrained entry (no {ckpt.CONFIG_FILE})")
+    mgr = ckpt.manager(path)
+    try:
+        src, _ = ckpt.restore(mgr, ts, skip=ckpt.PER_ENV + (".rng",))
+    except FileNotFoundError as e:
+        raise InitFromError(f"init_from={path}: {e}") from None
+    except ValueError as e:  # orbax: a leaf of another shape or a missing leaf
+        raise InitFromError(f"init_from={path} does not fit this experiment's networks or objectives "
+                            f"({str(e).splitlines()[0][:200]})") from None
+    finally:
+        mgr.close()
+    return src
+
+
+class InitFromError(JaxmotionError):
+    """``init_from`` names something that cannot start this run."""
 
 
 def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:
