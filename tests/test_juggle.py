@@ -41,7 +41,7 @@ def _run(steps: int, catcher: bool):
 
 
 def test_target_speed_is_the_authors():
-    assert V_STAR == pytest.approx(0.5 * 9.81 * 18 / 30)
+    assert pytest.approx(0.5 * 9.81 * 18 / 30) == V_STAR
 
 
 @pytest.mark.parametrize("catcher", [False, True])

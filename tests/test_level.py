@@ -5,7 +5,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import build_clip, make_test_clip
 from jaxmotion.motion.level import level_feet, sole_points
 from jaxmotion.physics.character import character

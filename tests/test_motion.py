@@ -35,7 +35,7 @@ needs_data = pytest.mark.skipif(not SHARED, reason=f"shared motion data not foun
                                                    "(set JAXMOTION_DATA)")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _load(path: str):
     return load_clip(path)
 

@@ -43,7 +43,8 @@ because the per-head penalty is the largest learning cost per sample after PPO.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

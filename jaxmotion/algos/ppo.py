@@ -18,7 +18,8 @@ returns, averaged over samples and heads, with weight 0.5; there is no entropy t
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

@@ -18,7 +18,8 @@ before the next (``Task.sense``/``Task.place``).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp

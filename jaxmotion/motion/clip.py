@@ -106,7 +106,7 @@ def mean_root_speed(clip: Clip) -> float:
     return float(step.mean() * clip.fps)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _model(sword_shield: bool) -> mujoco.MjModel:
     return character(sword_shield).mj_model()
 

@@ -18,7 +18,7 @@ the file's rotation are dropped (they are exactly zero in the shared data).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import warnings
 

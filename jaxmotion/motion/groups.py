@@ -7,7 +7,8 @@ means the character's heading frame (root yaw only, origin = the root projected 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 import numpy as np
 

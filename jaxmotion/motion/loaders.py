@@ -21,7 +21,7 @@ import json
 import os
 import re
 from pathlib import Path
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -296,7 +296,7 @@ def _read_poselib(path, character_hint: Character | None) -> _Raw:
 
 def _read_json(path) -> dict:
     try:
-        with open(path, "r") as f:
+        with open(path) as f:
             d = json.load(f)
     except json.JSONDecodeError as e:
         raise MotionFileError(path, f"malformed JSON: {e}") from None

@@ -8,7 +8,7 @@ time arrays may have any (matching or broadcastable) leading shape.
 from __future__ import annotations
 
 import os
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -110,7 +110,7 @@ class MotionLib:
             raise KeyError(f"no clip {name!r}; clips are {list(self.clip_names)}") from None
 
     @classmethod
-    def from_clips(cls, clips: Sequence[Clip], weights: Sequence[float] | None = None) -> "MotionLib":
+    def from_clips(cls, clips: Sequence[Clip], weights: Sequence[float] | None = None) -> MotionLib:
         """Packs clips (all of one character) into a library.
 
         Args:

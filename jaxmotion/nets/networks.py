@@ -25,7 +25,8 @@ penalty's inner quantity), with about 40% fewer multiply-adds than one backward 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, Sequence
+from typing import Any
+from collections.abc import Callable, Sequence
 
 import flax.linen as nn
 import jax

@@ -20,7 +20,8 @@ state would ride in ``extra``) and progressive columns are further classes of th
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Sequence
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -268,7 +268,7 @@ class Character:
         return mujoco.MjModel.from_xml_string(build_mjcf(self.sword_shield))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def character(sword_shield: bool = False) -> Character:
     """The humanoid (15 bodies, 28 hinges), or with sword and shield (17 bodies, 31 hinges)."""
     bodies = _body_table(sword_shield)

@@ -22,7 +22,7 @@ import mujoco
 from mujoco import mjx
 
 from jaxmotion.physics import backends
-from jaxmotion.physics.character import Character, character
+from jaxmotion.physics.character import Character
 from jaxmotion.physics.props import PropConfig, prop_channels, scene_mjcf
 
 

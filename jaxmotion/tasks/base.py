@@ -25,7 +25,6 @@ to one per discriminator; it never looks at which task it runs. Tasks are found 
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, ClassVar
 
 import jax

@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 import jax
 import jax.numpy as jnp
-import numpy as np
 from flax import struct
 
 from jaxmotion.motion.observations import LinkFrames

@@ -20,7 +20,6 @@ incremental (its own meta comes along).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import jax.numpy as jnp
 import numpy as np

@@ -16,7 +16,8 @@ the run; only ``shared`` player policies take a pool.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp

@@ -35,7 +35,7 @@ import sys
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 from jaxmotion.envs.reference import align_pose, align_to_start, reference_state
@@ -125,7 +125,7 @@ def _install(backend: str) -> None:
     gl_context.GLContext = GLContext
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gl_backend() -> str | None:
     """The headless GL backend in use ('egl', 'osmesa', or the user's ``MUJOCO_GL``), or None.
 
