@@ -121,8 +121,9 @@ def peak_memory_mb() -> float:
     return rss / (2**20 if sys.platform == "darwin" else 2**10)
 
 
-def time_calls(fn: Callable[[Any], Any], state: Any, seconds: float,
-               fresh: Callable[[], Any] | None = None) -> tuple[Any, int, float]:
+def time_calls(
+    fn: Callable[[Any], Any], state: Any, seconds: float, fresh: Callable[[], Any] | None = None
+) -> tuple[Any, int, float]:
     """Calls ``state = fn(state)`` (blocking on the result) until ``seconds`` have passed.
 
     Args:
@@ -212,8 +213,7 @@ def prepare_callback(cfg: BenchConfig, qpos: np.ndarray) -> tuple[Timed, dict[st
     from jaxmotion.physics import backends
 
     pc = cfg.physics
-    phys = backends.MujocoPhysics(sim.scene_xml(pc), sim.mj_model(pc), sim.mjx_model(pc),
-                                  pc.substeps, num_cpus())
+    phys = backends.MujocoPhysics(sim.scene_xml(pc), sim.mj_model(pc), sim.mjx_model(pc), pc.substeps, num_cpus())
     step = jax.vmap(phys.step, in_axes=(0, None))
 
     def run(data, target):
@@ -259,6 +259,7 @@ def prepare_mujoco_c(cfg: BenchConfig, qpos: np.ndarray, stack: contextlib.ExitS
         def fn(_):
             pool.rollout(m, datas, init, ctrl, nstep=nstep, state=out)
             return out[:, -1, 1 + 2].copy()
+
         method = f"mujoco.rollout nthread={nthread}"
     else:
         datas = [mujoco.MjData(m) for _ in range(batch)]
@@ -269,6 +270,7 @@ def prepare_mujoco_c(cfg: BenchConfig, qpos: np.ndarray, stack: contextlib.ExitS
                 dd.ctrl[:] = 0.0
                 mujoco.mj_step(m, dd, nstep)
             return np.array([dd.qpos[2] for dd in datas])
+
         method = "python loop over mj_step (1 thread)"
     timed = Timed(fn, fn(None), batch * cfg.steps)  # the first call is the warm-up
     return timed, {"mujoco_c_method": method}
@@ -285,8 +287,10 @@ def _learner(cfg: BenchConfig, batch: int, backend: str = "auto"):
     n = batch * tc.ppo.horizon * tc.env.players
     fit = lambda mb: math.gcd(n, mb)  # the largest size <= mb that divides the sample count
     tc = dataclasses.replace(
-        tc, ppo=dataclasses.replace(tc.ppo, num_envs=batch, minibatch_size=fit(tc.ppo.minibatch_size)),
-        disc=dataclasses.replace(tc.disc, minibatch_size=fit(tc.disc.minibatch_size)))
+        tc,
+        ppo=dataclasses.replace(tc.ppo, num_envs=batch, minibatch_size=fit(tc.ppo.minibatch_size)),
+        disc=dataclasses.replace(tc.disc, minibatch_size=fit(tc.disc.minibatch_size)),
+    )
     if cfg.iters:
         tc = dataclasses.replace(tc, chunk=cfg.iters)
     return Learner(tc), tc
@@ -331,8 +335,9 @@ def prepare_train(cfg: BenchConfig, batch: int, backend: str) -> tuple[Timed, di
 PARTS = ("physics", "rollout", "train")
 
 
-def bench_batch(cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str, str],
-                log: Callable[[str], None] = print) -> dict[str, dict[str, Any]]:
+def bench_batch(
+    cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str, str], log: Callable[[str], None] = print
+) -> dict[str, dict[str, Any]]:
     """Compiles every part at one batch size, then times them in ``cfg.rounds`` alternating rounds.
 
     Alternating makes a slow spell of the host (other processes, a noisy neighbour) hit physics
@@ -376,12 +381,16 @@ def bench_batch(cfg: BenchConfig, batch: int, parts: list[str], errors: dict[str
                 t.measure(cfg.seconds / rounds)
     mem = peak_memory_mb()
     if "physics" in rows:
-        rows["physics"].update({
-            "batch": batch, "mjx_control_steps_per_s": timers["physics"].rate,
-            "mjx_root_height": float(jnp.mean(timers["physics"].state.qpos[:, 2])),
-            "mujoco_c_control_steps_per_s": timers["mujoco_c"].rate,
-            "mujoco_c_root_height": float(np.mean(timers["mujoco_c"].state)),
-            "callback_control_steps_per_s": timers["callback"].rate})
+        rows["physics"].update(
+            {
+                "batch": batch,
+                "mjx_control_steps_per_s": timers["physics"].rate,
+                "mjx_root_height": float(jnp.mean(timers["physics"].state.qpos[:, 2])),
+                "mujoco_c_control_steps_per_s": timers["mujoco_c"].rate,
+                "mujoco_c_root_height": float(np.mean(timers["mujoco_c"].state)),
+                "callback_control_steps_per_s": timers["callback"].rate,
+            }
+        )
     out: dict[str, list[dict[str, Any]]] = {}
     for key, row in rows.items():
         if key == "physics":
@@ -412,7 +421,6 @@ def add_physics_ratios(result: dict[str, Any]) -> None:
                 row["fraction_of_bare_c"] = row["control_steps_per_s"] / phys["mujoco_c_control_steps_per_s"]
 
 
-
 def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> str:
     """An aligned text table of ``rows``; ``columns`` are (header, key, format) triples."""
     cells = [[h for h, _, _ in columns]]
@@ -425,22 +433,44 @@ def report(result: dict[str, Any]) -> str:
     """The tables of every part that has rows."""
     out = [f"device: {result['device']}  (jax {result['jax_version']}, mujoco {result['mujoco_version']})"]
     if result["physics"]:
-        rows = [dict(r, ratio=r["mujoco_c_control_steps_per_s"] / r["mjx_control_steps_per_s"])
-                for r in result["physics"]]
-        out += ["", f"physics (control steps/s; 1 control step = {result['settings']['substeps']} physics steps; "
-                f"C: {rows[0]['mujoco_c_method']})",
-                format_table(rows, [("batch", "batch", "d"), ("mjx", "mjx_control_steps_per_s", ".0f"),
-                                    ("mujoco C", "mujoco_c_control_steps_per_s", ".0f"), ("C/mjx", "ratio", ".1f"),
-                                    ("C callback", "callback_control_steps_per_s", ".0f"),
-                                    ("compile s", "compile_s", ".1f"), ("mjx root z", "mjx_root_height", ".3f")])]
+        rows = [
+            dict(r, ratio=r["mujoco_c_control_steps_per_s"] / r["mjx_control_steps_per_s"]) for r in result["physics"]
+        ]
+        out += [
+            "",
+            f"physics (control steps/s; 1 control step = {result['settings']['substeps']} physics steps; "
+            f"C: {rows[0]['mujoco_c_method']})",
+            format_table(
+                rows,
+                [
+                    ("batch", "batch", "d"),
+                    ("mjx", "mjx_control_steps_per_s", ".0f"),
+                    ("mujoco C", "mujoco_c_control_steps_per_s", ".0f"),
+                    ("C/mjx", "ratio", ".1f"),
+                    ("C callback", "callback_control_steps_per_s", ".0f"),
+                    ("compile s", "compile_s", ".1f"),
+                    ("mjx root z", "mjx_root_height", ".3f"),
+                ],
+            ),
+        ]
     for part in ("rollout", "train"):
         if result[part]:
-            out += ["", f"{part} (control steps/s; cost/physics = time per control step over physics alone; exp {result['settings']['exp']})",
-                    format_table(result[part], [("batch", "batch", "d"), ("backend", "backend", "s"),
-                                                ("steps/s", "control_steps_per_s", ".0f"),
-                                                ("cost/physics", "physics_cost_ratio", ".2f"),
-                                                ("of bare C", "fraction_of_bare_c", ".2f"),
-                                                ("compile s", "compile_s", ".1f"), ("peak MB", "peak_mem_mb", ".0f")])]
+            out += [
+                "",
+                f"{part} (control steps/s; cost/physics = time per control step over physics alone; exp {result['settings']['exp']})",
+                format_table(
+                    result[part],
+                    [
+                        ("batch", "batch", "d"),
+                        ("backend", "backend", "s"),
+                        ("steps/s", "control_steps_per_s", ".0f"),
+                        ("cost/physics", "physics_cost_ratio", ".2f"),
+                        ("of bare C", "fraction_of_bare_c", ".2f"),
+                        ("compile s", "compile_s", ".1f"),
+                        ("peak MB", "peak_mem_mb", ".0f"),
+                    ],
+                ),
+            ]
     for part, msg in result.get("errors", {}).items():
         out += ["", f"{part}: FAILED: {msg}"]
     return "\n".join(out)
@@ -455,13 +485,27 @@ def run(cfg: BenchConfig, parts: list[str], timeout: float = 0.0) -> dict[str, A
         timeout: seconds after which a batch size that has not finished aborts the process with
             a traceback (a hung compile or execution, as with jax 0.10.2); 0 disables.
     """
-    result = {"device": device_description(), "jax_version": jax.__version__, "mujoco_version": mujoco.__version__,
-              "settings": {"control_steps_per_call": cfg.steps, "substeps": cfg.physics.substeps,
-                           "sim_hz": cfg.physics.sim_hz, "min_seconds": cfg.seconds, "rounds": cfg.rounds,
-                           "exp": cfg.exp, "overrides": list(cfg.overrides), "train_iterations_per_call": cfg.iters or "experiment chunk",
-                           # With a persistent cache, compile_s of a cache hit is the load time.
-                           "compilation_cache": jax.config.jax_compilation_cache_dir or None},
-              "physics": [], "rollout": [], "train": [], "errors": {}}
+    result = {
+        "device": device_description(),
+        "jax_version": jax.__version__,
+        "mujoco_version": mujoco.__version__,
+        "settings": {
+            "control_steps_per_call": cfg.steps,
+            "substeps": cfg.physics.substeps,
+            "sim_hz": cfg.physics.sim_hz,
+            "min_seconds": cfg.seconds,
+            "rounds": cfg.rounds,
+            "exp": cfg.exp,
+            "overrides": list(cfg.overrides),
+            "train_iterations_per_call": cfg.iters or "experiment chunk",
+            # With a persistent cache, compile_s of a cache hit is the load time.
+            "compilation_cache": jax.config.jax_compilation_cache_dir or None,
+        },
+        "physics": [],
+        "rollout": [],
+        "train": [],
+        "errors": {},
+    }
     log = lambda s: print(s, file=sys.stderr, flush=True)
     for batch in cfg.batches:
         if timeout > 0:
@@ -483,15 +527,31 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m jaxmotion.bench", description=__doc__.split("\n")[0])
     p.add_argument("--quick", action="store_true", help="tiny run for tests: batches 1,4, 2 steps, no timing floor")
     p.add_argument("--batches", help="comma-separated batch sizes (default 64,256,1024; on GPU also 4096,16384)")
-    p.add_argument("--parts", default="physics,rollout,train", help="comma-separated subset of physics,rollout,train (default: all)")
+    p.add_argument(
+        "--parts",
+        default="physics,rollout,train",
+        help="comma-separated subset of physics,rollout,train (default: all)",
+    )
     p.add_argument("--steps", type=int, help="control steps per physics call (default 8, quick 2)")
     p.add_argument("--seconds", type=float, help="minimum measuring time per number (default 3, quick 0)")
-    p.add_argument("--exp", default=None, help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)")
-    p.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                   help="config overrides for rollout/train, e.g. --set disc.gp_mode=sum_heads")
-    p.add_argument("--backends", default="mjx,mujoco",
-                   help="physics backends of the rollout and train rows (default: both)")
-    p.add_argument("--iters", type=int, default=1, help="train iterations per compiled call (0: the experiment's chunk)")
+    p.add_argument(
+        "--exp",
+        default=None,
+        help="experiment for rollout/train (default composite/chest_open+squat; smoke with --quick)",
+    )
+    p.add_argument(
+        "--set",
+        nargs="*",
+        default=[],
+        metavar="KEY=VALUE",
+        help="config overrides for rollout/train, e.g. --set disc.gp_mode=sum_heads",
+    )
+    p.add_argument(
+        "--backends", default="mjx,mujoco", help="physics backends of the rollout and train rows (default: both)"
+    )
+    p.add_argument(
+        "--iters", type=int, default=1, help="train iterations per compiled call (0: the experiment's chunk)"
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--rounds", type=int, help="alternating timing rounds per batch size (default 3, quick 1)")
     p.add_argument("--timeout", type=float, default=1800.0, help="abort a batch size that runs longer (s; 0: never)")
@@ -511,11 +571,17 @@ def main(argv: list[str] | None = None) -> int:
     # A benchmark without compilation measures nothing useful (and un-jitted MJX takes seconds
     # per step), so JAX_DISABLE_JIT=1, which the test suite sets, is overridden here.
     jax.config.update("jax_disable_jit", False)
-    cfg = BenchConfig(batches=batches, steps=a.steps or (2 if a.quick else 8),
-                      seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
-                      exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"), iters=a.iters, seed=a.seed,
-                      rounds=a.rounds or (1 if a.quick else 3), overrides=tuple(a.set),
-                      backends=tuple(b.strip() for b in a.backends.split(",") if b.strip()))
+    cfg = BenchConfig(
+        batches=batches,
+        steps=a.steps or (2 if a.quick else 8),
+        seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
+        exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"),
+        iters=a.iters,
+        seed=a.seed,
+        rounds=a.rounds or (1 if a.quick else 3),
+        overrides=tuple(a.set),
+        backends=tuple(b.strip() for b in a.backends.split(",") if b.strip()),
+    )
     if {"rollout", "train"} & set(parts):
         check_clips(cfg)  # a missing clip is one clear line before anything compiles
     result = run(cfg, parts, a.timeout)

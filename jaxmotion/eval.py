@@ -25,14 +25,18 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=None, help="episodes (default: the config's eval_episodes)")
     p.add_argument("--json", type=Path, default=None, help="also write the metrics here")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--untrained", action="store_true",
-                   help="evaluate the run's configuration with freshly initialised networks (its seed): the baseline")
-    p.add_argument("--video", type=Path, default=None,
-                   help="render episode 0 with its reference as a ghost (.mp4, or .gif)")
-    p.add_argument("--html", type=Path, default=None,
-                   help="write episode 0 as a self-contained 3D replay page (.html)")
-    p.add_argument("--no-plots", action="store_true",
-                   help="do not write learning-curve PNGs (plot_*.png) into the run folder")
+    p.add_argument(
+        "--untrained",
+        action="store_true",
+        help="evaluate the run's configuration with freshly initialised networks (its seed): the baseline",
+    )
+    p.add_argument(
+        "--video", type=Path, default=None, help="render episode 0 with its reference as a ghost (.mp4, or .gif)"
+    )
+    p.add_argument("--html", type=Path, default=None, help="write episode 0 as a self-contained 3D replay page (.html)")
+    p.add_argument(
+        "--no-plots", action="store_true", help="do not write learning-curve PNGs (plot_*.png) into the run folder"
+    )
     for ev in EVALUATORS.values():
         ev.add_arguments(p)
     return p

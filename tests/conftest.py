@@ -11,8 +11,7 @@ import jax
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = (Path(os.environ["JAXMOTION_DATA"]) if os.environ.get("JAXMOTION_DATA")
-        else REPO.parent / "shared" / "motions")
+DATA = Path(os.environ["JAXMOTION_DATA"]) if os.environ.get("JAXMOTION_DATA") else REPO.parent / "shared" / "motions"
 
 
 def train_scoring_last(run, ts, chunks: int, score, last: int = 3):

@@ -55,13 +55,9 @@ def test_gae_episode_end_semantics():
     trunc[5, 2] = 1.0
     adv, _ = gae.compute_gae(rewards, values, next_values, term, trunc, gamma=0.9, lam=0.8)
     np.testing.assert_allclose(adv[3, 1], rewards[3, 1] - values[3, 1], rtol=1e-6)
-    np.testing.assert_allclose(
-        adv[5, 2], rewards[5, 2] + 0.9 * next_values[5, 2] - values[5, 2], rtol=1e-6
-    )
+    np.testing.assert_allclose(adv[5, 2], rewards[5, 2] + 0.9 * next_values[5, 2] - values[5, 2], rtol=1e-6)
     # Last step: plain one-step TD error with bootstrap.
-    np.testing.assert_allclose(
-        adv[-1], rewards[-1] + 0.9 * next_values[-1] - values[-1], rtol=1e-6, atol=1e-6
-    )
+    np.testing.assert_allclose(adv[-1], rewards[-1] + 0.9 * next_values[-1] - values[-1], rtol=1e-6, atol=1e-6)
 
 
 def test_gae_bootstrap_value_form_and_single_objective():
@@ -186,7 +182,12 @@ def _ppo_setup(K, seed=0, N=5, D=6, A=4, std_mode=True):
 def test_ppo_policy_gradient_zero_at_old_policy_with_zero_advantage(per_objective_clip):
     policy, critic, pp, cp, batch = _ppo_setup(K=3)
     grads, _ = jax.grad(ppo.ppo_losses, has_aux=True)(
-        pp, cp, batch, policy.apply, critic.apply, jnp.full(3, 1 / 3),
+        pp,
+        cp,
+        batch,
+        policy.apply,
+        critic.apply,
+        jnp.full(3, 1 / 3),
         per_objective_clip=per_objective_clip,
     )
     for g in jax.tree.leaves(grads):
@@ -198,9 +199,7 @@ def test_ppo_gradient_at_old_policy_is_vanilla_policy_gradient(std_mode):
     policy, critic, pp, cp, batch = _ppo_setup(K=1, std_mode=std_mode)
     adv = jax.random.normal(jax.random.PRNGKey(5), batch.advantages.shape)
     batch = batch.replace(advantages=adv)
-    grads, _ = jax.grad(ppo.ppo_losses, has_aux=True)(
-        pp, cp, batch, policy.apply, critic.apply, jnp.ones(1)
-    )
+    grads, _ = jax.grad(ppo.ppo_losses, has_aux=True)(pp, cp, batch, policy.apply, critic.apply, jnp.ones(1))
 
     def pg_loss(params):
         mean, log_std = policy.apply(params, batch.obs)
@@ -215,9 +214,7 @@ def test_ppo_losses_value_loss_and_metrics():
     K = 2
     policy, critic, pp, cp, batch = _ppo_setup(K=K)
     state = popart.popart_update(popart.popart_init(K), batch.returns)
-    loss, metrics = ppo.ppo_losses(
-        pp, cp, batch, policy.apply, critic.apply, jnp.full(K, 0.5), popart_state=state
-    )
+    loss, metrics = ppo.ppo_losses(pp, cp, batch, policy.apply, critic.apply, jnp.full(K, 0.5), popart_state=state)
     values = critic.apply(cp, batch.obs)
     expected_v = np.mean((values - popart.normalize(state, batch.returns)) ** 2)
     np.testing.assert_allclose(metrics["value_loss"], expected_v, rtol=1e-5)
@@ -226,9 +223,7 @@ def test_ppo_losses_value_loss_and_metrics():
     np.testing.assert_allclose(metrics["ratio_mean"], 1.0, atol=1e-6)
     assert all(jnp.shape(v) == () for v in metrics.values())
     # Entropy bonus enters with a minus sign.
-    loss_ent, m = ppo.ppo_losses(
-        pp, cp, batch, policy.apply, critic.apply, jnp.full(K, 0.5), state, entropy_coef=0.1
-    )
+    loss_ent, m = ppo.ppo_losses(pp, cp, batch, policy.apply, critic.apply, jnp.full(K, 0.5), state, entropy_coef=0.1)
     np.testing.assert_allclose(loss_ent, loss - 0.1 * m["entropy"], rtol=1e-5)
 
 
@@ -258,9 +253,7 @@ def test_disc_loss_linear_hand_computed(gp_mode):
         gp = np.mean((np.linalg.norm(W, axis=1) - 1) ** 2)
     else:
         gp = (np.linalg.norm(W.sum(0)) - 1) ** 2
-    loss, metrics = disc.disc_loss(
-        apply_fn, params, pol, ref, jax.random.PRNGKey(0), gp_weight=10.0, gp_mode=gp_mode
-    )
+    loss, metrics = disc.disc_loss(apply_fn, params, pol, ref, jax.random.PRNGKey(0), gp_weight=10.0, gp_mode=gp_mode)
     np.testing.assert_allclose(metrics["hinge_loss"], hinge, rtol=1e-5)
     np.testing.assert_allclose(metrics["gradient_penalty"], gp, rtol=1e-5)
     np.testing.assert_allclose(loss, hinge + 10.0 * gp, rtol=1e-5)
@@ -282,19 +275,20 @@ def test_disc_per_head_gradients_match_jacobian_on_mlp():
     assert all(np.isfinite(g).all() for g in jax.tree.leaves(loss_grads))
 
 
-@pytest.mark.parametrize("obs_size,hidden,activation", [
-    (9, (5,), "tanh"),       # D > H_1 (the quadratic form), one layer, act' with a gradient
-    (6, (8, 4), "elu"),      # D <= H_1 (the direct product)
-    (7, (6, 5, 4), "relu"),  # three hidden layers, D > H_1
-])
+@pytest.mark.parametrize(
+    "obs_size,hidden,activation",
+    [
+        (9, (5,), "tanh"),  # D > H_1 (the quadratic form), one layer, act' with a gradient
+        (6, (8, 4), "elu"),  # D <= H_1 (the direct product)
+        (7, (6, 5, 4), "relu"),  # three hidden layers, D > H_1
+    ],
+)
 def test_structured_head_grad_norms_match_backward_passes(obs_size, hidden, activation):
-    net = networks.make_discriminator_network(obs_size, num_heads=3, hidden_sizes=hidden,
-                                              activation=activation)
+    net = networks.make_discriminator_network(obs_size, num_heads=3, hidden_sizes=hidden, activation=activation)
     params = net.init(jax.random.PRNGKey(0))
     x = jax.random.normal(jax.random.PRNGKey(1), (4, obs_size))
     per_head = disc.input_gradients(net.apply, params, x, "per_head")  # [H, N, D]
-    np.testing.assert_allclose(net.head_grad_sq_norms(params, x), jnp.sum(per_head**2, -1).T,
-                               rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(net.head_grad_sq_norms(params, x), jnp.sum(per_head**2, -1).T, rtol=1e-5, atol=1e-7)
     # The penalty and its parameter gradient (double backward) agree with the backward passes.
     gp = lambda p, fn: disc.gradient_penalty(net.apply, p, x, "per_head", fn)  # noqa: E731
     np.testing.assert_allclose(gp(params, net.head_grad_sq_norms), gp(params, None), rtol=1e-5)
@@ -314,9 +308,7 @@ def test_interpolate_per_sample_alpha():
 
 def test_disc_reward_is_mean_of_clipped_heads():
     logits = jnp.array([[[2.0, -0.5, 0.3, -4.0]], [[0.1, 0.2, 0.3, 0.4]]])  # [2, 1, 4]
-    np.testing.assert_allclose(
-        disc.disc_reward(logits), [[(1.0 - 0.5 + 0.3 - 1.0) / 4], [0.25]], rtol=1e-6
-    )
+    np.testing.assert_allclose(disc.disc_reward(logits), [[(1.0 - 0.5 + 0.3 - 1.0) / 4], [0.25]], rtol=1e-6)
 
 
 def test_disc_loss_rejects_unknown_mode():
@@ -343,14 +335,17 @@ def _sigmoid(z):
 
 
 @pytest.mark.parametrize("gp_mode", ["per_head", "sum_heads"])
-@pytest.mark.parametrize("loss_name,expected", [
-    # mean_h relu(1 + pol) = (0.5 + 3) / 2; mean_h relu(1 - ref) = (0.5 + 4) / 2
-    ("hinge", 1.75 + 2.25),
-    # mean_h (ref - 1)^2 = (0.25 + 16) / 2; mean_h (pol + 1)^2 = (0.25 + 9) / 2
-    ("lsgan", 8.125 + 4.625),
-    # mean_h -log sigmoid(ref) + mean_h -log(1 - sigmoid(pol))
-    ("bce", np.mean(-np.log(_sigmoid(_REF_LOGITS))) + np.mean(-np.log(1 - _sigmoid(_POL_LOGITS)))),
-])
+@pytest.mark.parametrize(
+    "loss_name,expected",
+    [
+        # mean_h relu(1 + pol) = (0.5 + 3) / 2; mean_h relu(1 - ref) = (0.5 + 4) / 2
+        ("hinge", 1.75 + 2.25),
+        # mean_h (ref - 1)^2 = (0.25 + 16) / 2; mean_h (pol + 1)^2 = (0.25 + 9) / 2
+        ("lsgan", 8.125 + 4.625),
+        # mean_h -log sigmoid(ref) + mean_h -log(1 - sigmoid(pol))
+        ("bce", np.mean(-np.log(_sigmoid(_REF_LOGITS))) + np.mean(-np.log(1 - _sigmoid(_POL_LOGITS)))),
+    ],
+)
 def test_disc_losses_hand_computed_on_fixed_logits(loss_name, expected, gp_mode):
     apply_fn, params = _selector_disc()
     pol = np.zeros((4, 3), np.float32)
@@ -359,8 +354,9 @@ def test_disc_losses_hand_computed_on_fixed_logits(loss_name, expected, gp_mode)
     # d logits / d x_0 = ref - pol = [1, -5] everywhere: per head ((1-1)^2 + (5-1)^2) / 2 = 8,
     # summed heads (|1 - 5| - 1)^2 = 9.
     gp = 8.0 if gp_mode == "per_head" else 9.0
-    loss, metrics = disc.disc_loss(apply_fn, params, pol, ref, jax.random.PRNGKey(0),
-                                   gp_weight=10.0, gp_mode=gp_mode, loss=loss_name)
+    loss, metrics = disc.disc_loss(
+        apply_fn, params, pol, ref, jax.random.PRNGKey(0), gp_weight=10.0, gp_mode=gp_mode, loss=loss_name
+    )
     np.testing.assert_allclose(metrics[f"{loss_name}_loss"], expected, rtol=1e-5)
     np.testing.assert_allclose(metrics["gradient_penalty"], gp, rtol=1e-5)
     np.testing.assert_allclose(loss, expected + 10.0 * gp, rtol=1e-5)
@@ -369,19 +365,16 @@ def test_disc_losses_hand_computed_on_fixed_logits(loss_name, expected, gp_mode)
 
 def test_disc_rewards_hand_computed():
     logits = jnp.asarray([_POL_LOGITS, [-3.0, 50.0], [1.0, 1.0]])  # [3, H=2]
-    np.testing.assert_allclose(disc.disc_reward(logits, "hinge"), [(-0.5 + 1) / 2, 0.0, 1.0],
-                               rtol=1e-6)
+    np.testing.assert_allclose(disc.disc_reward(logits, "hinge"), [(-0.5 + 1) / 2, 0.0, 1.0], rtol=1e-6)
     # max(0, 1 - (D - 1)^2 / 4): 1 - 2.25/4, 1 - 1/4; 0 (floored), 0 (floored); 1, 1.
-    np.testing.assert_allclose(disc.disc_reward(logits, "lsgan"), [(0.4375 + 0.75) / 2, 0.0, 1.0],
-                               rtol=1e-6)
+    np.testing.assert_allclose(disc.disc_reward(logits, "lsgan"), [(0.4375 + 0.75) / 2, 0.0, 1.0], rtol=1e-6)
     # -log max(1 - sigmoid(D), 1e-4): 1 - sigmoid(50) underflows, the clip pays log 1e4.
     bce = lambda z: -np.log(np.maximum(1 - _sigmoid(z), 1e-4))  # noqa: E731
-    np.testing.assert_allclose(disc.disc_reward(logits, "bce"),
-                               [bce(_POL_LOGITS).mean(), (bce(-3.0) + np.log(1e4)) / 2, bce(1.0)],
-                               rtol=1e-5)
+    np.testing.assert_allclose(
+        disc.disc_reward(logits, "bce"), [bce(_POL_LOGITS).mean(), (bce(-3.0) + np.log(1e4)) / 2, bce(1.0)], rtol=1e-5
+    )
     assert (np.asarray(disc.disc_reward(logits, "bce")) >= 0).all()
-    np.testing.assert_allclose(disc.disc_reward(jnp.full((1, 3), 1e4), "bce"), [np.log(1e4)],
-                               rtol=1e-6)
+    np.testing.assert_allclose(disc.disc_reward(jnp.full((1, 3), 1e4), "bce"), [np.log(1e4)], rtol=1e-6)
 
 
 @pytest.mark.parametrize("loss_name", disc.LOSSES)
@@ -395,8 +388,9 @@ def test_disc_reward_rises_with_reference_likeness(loss_name):
     between = (shifts[:-1] >= -0.8) & (shifts[1:] <= 0.8)
     assert (np.diff(r, axis=0)[np.asarray(between)] > 0).all()
     assert r.min() >= disc.MIN_REWARD[loss_name]
-    np.testing.assert_allclose(disc.disc_reward(jnp.full((1, 3), -50.0), loss_name),
-                               [disc.MIN_REWARD[loss_name]], atol=1e-6)
+    np.testing.assert_allclose(
+        disc.disc_reward(jnp.full((1, 3), -50.0), loss_name), [disc.MIN_REWARD[loss_name]], atol=1e-6
+    )
     # One head more reference-like raises the ensemble's reward.
     zero = jnp.zeros((1, 5))
     one = zero.at[0, 2].set(0.5)
@@ -412,6 +406,7 @@ def test_disc_losses_fall_when_training_on_separable_blobs(loss_name):
     k_pol, k_ref, k_gp = jax.random.split(jax.random.PRNGKey(1), 3)
     pol = jax.random.normal(k_pol, (64, 6)) - 1.5
     ref = jax.random.normal(k_ref, (64, 6)) + 1.5
+
     def loss_fn(p):
         return disc.disc_loss(net.apply, p, pol, ref, k_gp, 10.0, "sum_heads", loss=loss_name)
 
@@ -439,17 +434,22 @@ def test_default_hinge_matches_the_previous_numbers():
     pol = jax.random.normal(jax.random.PRNGKey(1), (5, 6))
     ref = 0.5 + jax.random.normal(jax.random.PRNGKey(3), (5, 6))
     golden = {
-        "per_head": {"loss": 8.702189445495605, "hinge_loss": 1.9867264032363892,
-                     "gradient_penalty": 0.6715462803840637},
-        "sum_heads": {"loss": 2.438039779663086, "hinge_loss": 1.9867264032363892,
-                      "gradient_penalty": 0.04513133317232132},
+        "per_head": {
+            "loss": 8.702189445495605,
+            "hinge_loss": 1.9867264032363892,
+            "gradient_penalty": 0.6715462803840637,
+        },
+        "sum_heads": {
+            "loss": 2.438039779663086,
+            "hinge_loss": 1.9867264032363892,
+            "gradient_penalty": 0.04513133317232132,
+        },
     }
     for gp_mode, fn in (("per_head", net.head_grad_sq_norms), ("sum_heads", None)):
         args = (net.apply, params, pol, ref, jax.random.PRNGKey(2), 10.0, gp_mode, fn)
         loss, m = disc.disc_loss(*args)
         loss_h, m_h = disc.disc_loss(*args, loss="hinge")
-        assert set(m) == {"loss", "hinge_loss", "gradient_penalty", "policy_logit", "ref_logit",
-                          "accuracy"}
+        assert set(m) == {"loss", "hinge_loss", "gradient_penalty", "policy_logit", "ref_logit", "accuracy"}
         for k, v in golden[gp_mode].items():
             # float32 rounding differs by an ulp or two between CPUs (AMD vs Intel AVX-512 hosts)
             np.testing.assert_allclose(m[k], v, rtol=1e-5, err_msg=f"{gp_mode} {k}")
@@ -457,13 +457,17 @@ def test_default_hinge_matches_the_previous_numbers():
         np.testing.assert_array_equal(loss, loss_h)
         # The very ops of the old body: hinge + gp_weight * gradient penalty, bit for bit.
         x_hat = disc.interpolate(jax.random.PRNGKey(2), pol, ref)
-        old = (disc.hinge_loss(net.apply(params, pol), net.apply(params, ref))
-               + 10.0 * disc.gradient_penalty(net.apply, params, x_hat, gp_mode, fn))
+        old = disc.hinge_loss(net.apply(params, pol), net.apply(params, ref)) + 10.0 * disc.gradient_penalty(
+            net.apply, params, x_hat, gp_mode, fn
+        )
         np.testing.assert_array_equal(loss, old)
     logits = 20.0 * net.apply(params, pol)
     r = disc.disc_reward(logits)
-    np.testing.assert_allclose(r, [-0.02021697908639908, -0.3333064913749695, -0.0938066691160202,
-                                   -0.08793289959430695, -0.03819826617836952], rtol=1e-5)
+    np.testing.assert_allclose(
+        r,
+        [-0.02021697908639908, -0.3333064913749695, -0.0938066691160202, -0.08793289959430695, -0.03819826617836952],
+        rtol=1e-5,
+    )
     np.testing.assert_array_equal(r, disc.disc_reward(logits, "hinge"))
     np.testing.assert_array_equal(r, jnp.mean(jnp.clip(logits, -1.0, 1.0), axis=-1))
 
@@ -474,9 +478,11 @@ def test_unknown_disc_loss_is_rejected_with_the_valid_names():
     apply_fn, params = _linear_disc()
     zeros = jnp.zeros((2, 4))
     key = jax.random.PRNGKey(0)
-    for call in (lambda: DiscConfig(loss="wgan"),
-                 lambda: disc.disc_loss(apply_fn, params, zeros, zeros, key, loss="wgan"),
-                 lambda: disc.disc_reward(zeros, "wgan")):
+    for call in (
+        lambda: DiscConfig(loss="wgan"),
+        lambda: disc.disc_loss(apply_fn, params, zeros, zeros, key, loss="wgan"),
+        lambda: disc.disc_reward(zeros, "wgan"),
+    ):
         with pytest.raises(ValueError, match="'hinge', 'lsgan', 'bce'.*'wgan'"):
             call()
     assert DiscConfig().loss == "hinge"
@@ -493,6 +499,7 @@ def test_learner_reward_floor_follows_the_disc_loss(loss_name, accepted):
     env_cfg = EnvConfig(groups=(GroupConfig(name="full"),))
     ppo_cfg = PPOConfig(terminate_reward=-0.5, num_envs=4, horizon=4, minibatch_size=16)
     cfg = TrainConfig(env=env_cfg, ppo=ppo_cfg, disc=DiscConfig(minibatch_size=16, loss=loss_name))
+
     def make():
         return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(stand,), init_lib=stand))
 
@@ -522,12 +529,8 @@ def test_normalizer_matches_numpy_with_mask():
     np.testing.assert_allclose(state.mean, allx.mean(0), rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(state.std, allx.std(0), rtol=1e-5)
     x = rng.normal(size=(2, 4)).astype(np.float32) * 30
-    np.testing.assert_allclose(
-        normalizer.normalize(state, x, clip=None), (x - allx.mean(0)) / allx.std(0), rtol=1e-4
-    )
-    np.testing.assert_allclose(
-        normalizer.denormalize(state, normalizer.normalize(state, x, clip=None)), x, rtol=1e-5
-    )
+    np.testing.assert_allclose(normalizer.normalize(state, x, clip=None), (x - allx.mean(0)) / allx.std(0), rtol=1e-4)
+    np.testing.assert_allclose(normalizer.denormalize(state, normalizer.normalize(state, x, clip=None)), x, rtol=1e-5)
 
 
 def test_normalizer_identity_clip_and_empty_batch():

@@ -19,8 +19,14 @@ from jaxmotion.physics.character import build_mjcf, character
 
 def _physics(name: str, nthread: int | None = None):
     cfg = sim.PhysicsConfig()
-    return backends.make_physics(name, sim.mj_model(cfg), build_mjcf(False), sim.mjx_model(
-        sim.PhysicsConfig(backend="mjx")), cfg.substeps, nthread)
+    return backends.make_physics(
+        name,
+        sim.mj_model(cfg),
+        build_mjcf(False),
+        sim.mjx_model(sim.PhysicsConfig(backend="mjx")),
+        cfg.substeps,
+        nthread,
+    )
 
 
 def _states():
@@ -36,8 +42,9 @@ def _states():
     qvel[0] = rng.uniform(-0.5, 0.5, m.nv)
     target = qpos[:, 7:] + np.array([[1.0], [0.0]]) * rng.uniform(-0.05, 0.05, (2, m.nu))
     d0 = mjx.make_data(sim.mjx_model(sim.PhysicsConfig(backend="mjx")))
-    data = jax.vmap(lambda q, v: d0.replace(qpos=q, qvel=v))(jnp.asarray(qpos, jnp.float32),
-                                                            jnp.asarray(qvel, jnp.float32))
+    data = jax.vmap(lambda q, v: d0.replace(qpos=q, qvel=v))(
+        jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32)
+    )
     return data, jnp.asarray(target, jnp.float32)
 
 
@@ -53,7 +60,8 @@ def trajectories():
             d, qs, cs = data0, [], []
             for _ in range(60):
                 d, c = step(d, target)
-                qs.append(np.asarray(d.qpos)); cs.append(np.asarray(c))
+                qs.append(np.asarray(d.qpos))
+                cs.append(np.asarray(c))
         out[name] = (np.stack(qs), np.stack(cs), d)
     return out
 
@@ -86,17 +94,24 @@ def test_env_observations_agree_for_the_same_state(trajectories):
     """Observations are one JAX function of qpos/qvel on either backend: the same state gives the
     same observation, and the two backends' standing holds give nearly the same one."""
     stand = MotionLib.from_clips([make_test_clip(10, 30.0)])
-    envs = {name: HumanoidEnv(EnvConfig(groups=(GroupConfig(name="full"),),
-                                        physics=sim.PhysicsConfig(backend=name)),
-                              motion_libs=(stand,), init_lib=stand) for name in ("mujoco", "mjx")}
+    envs = {
+        name: HumanoidEnv(
+            EnvConfig(groups=(GroupConfig(name="full"),), physics=sim.PhysicsConfig(backend=name)),
+            motion_libs=(stand,),
+            init_lib=stand,
+        )
+        for name in ("mujoco", "mjx")
+    }
     assert {n: e.physics.name for n, e in envs.items()} == {"mujoco": "mujoco", "mjx": "mjx"}
     obs = {}
     with jit_enabled():
         for name, env in envs.items():
-            f = jax.jit(jax.vmap(lambda q, v, env=env: O.policy_obs(
-                jax.tree.map(lambda x: x[None], env.frames_of(q, v)))))
-            obs[name] = {src: np.asarray(f(trajectories[src][2].qpos, trajectories[src][2].qvel))
-                         for src in ("mujoco", "mjx")}
+            f = jax.jit(
+                jax.vmap(lambda q, v, env=env: O.policy_obs(jax.tree.map(lambda x: x[None], env.frames_of(q, v))))
+            )
+            obs[name] = {
+                src: np.asarray(f(trajectories[src][2].qpos, trajectories[src][2].qvel)) for src in ("mujoco", "mjx")
+            }
     for src in ("mujoco", "mjx"):
         np.testing.assert_array_equal(obs["mujoco"][src], obs["mjx"][src])
     np.testing.assert_allclose(obs["mujoco"]["mujoco"][1], obs["mujoco"]["mjx"][1], atol=5e-2)
@@ -184,7 +199,10 @@ def test_servo_damping_moves_kd_to_the_joints_and_is_checked():
     assert not m_joint.actuator_biasprm[:, 2].any() and not m_act.dof_damping.any()
     q, qd, t = (jnp.asarray(np.full(m_act.nu, v), jnp.float32) for v in (0.0, 2.0, 1.0))
     ch = character()  # the formula: clip(kp (t - q)) - kd qd with the damping on the joint
-    np.testing.assert_allclose(sim.pd_torque(ch, q, qd, t, "joint"),
-                               np.clip(ch.kp * 1.0, -ch.max_torque, ch.max_torque) - ch.kd * 2.0, rtol=1e-6)
+    np.testing.assert_allclose(
+        sim.pd_torque(ch, q, qd, t, "joint"),
+        np.clip(ch.kp * 1.0, -ch.max_torque, ch.max_torque) - ch.kd * 2.0,
+        rtol=1e-6,
+    )
     with pytest.raises(ValueError, match="servo_damping"):
         sim.PhysicsConfig(servo_damping="spring")

@@ -27,8 +27,22 @@ def test_physics_bench_writes_complete_json(tmp_path, request):
     out = tmp_path / "bench.json"
     env = dict(os.environ, JAX_DISABLE_JIT="0")
     env.setdefault("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax_compilation_cache")))
-    cmd = [sys.executable, "-m", "jaxmotion.bench", "--quick", "--parts", "physics,rollout,train",
-           "--batches", "2", "--steps", "2", "--backends", "mujoco", "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "jaxmotion.bench",
+        "--quick",
+        "--parts",
+        "physics,rollout,train",
+        "--batches",
+        "2",
+        "--steps",
+        "2",
+        "--backends",
+        "mujoco",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     result = json.loads(out.read_text())
@@ -43,8 +57,12 @@ def test_physics_bench_writes_complete_json(tmp_path, request):
             for key in ("control_steps_per_s", "physics_cost_ratio", "fraction_of_bare_c", "compile_s", "peak_mem_mb"):
                 assert _positive(row[key]), (part, key, row)
     for row in result["physics"]:
-        for key in ("mjx_control_steps_per_s", "mujoco_c_control_steps_per_s", "callback_control_steps_per_s",
-                    "compile_s"):
+        for key in (
+            "mjx_control_steps_per_s",
+            "mujoco_c_control_steps_per_s",
+            "callback_control_steps_per_s",
+            "compile_s",
+        ):
             assert _positive(row[key]), (key, row)
         assert row["mujoco_c_method"].startswith("mujoco.rollout"), row
         # The characters were still standing, so the work measured is the representative one.
@@ -71,12 +89,22 @@ def test_cli_rejects_unknown_part():
 
 
 def test_physics_ratios_pair_rows_by_batch():
-    result = {"physics": [{"batch": 64, "mjx_control_steps_per_s": 1000.0},
-                          {"batch": 256, "mjx_control_steps_per_s": 2000.0, "callback_control_steps_per_s": 8000.0,
-                           "mujoco_c_control_steps_per_s": 10000.0}],
-              "rollout": [{"batch": 256, "control_steps_per_s": 1600.0, "backend": "mjx"},
-                          {"batch": 256, "control_steps_per_s": 4000.0, "backend": "mujoco"}],
-              "train": [{"batch": 64, "control_steps_per_s": 400.0}, {"batch": 1024, "control_steps_per_s": 9.0}]}
+    result = {
+        "physics": [
+            {"batch": 64, "mjx_control_steps_per_s": 1000.0},
+            {
+                "batch": 256,
+                "mjx_control_steps_per_s": 2000.0,
+                "callback_control_steps_per_s": 8000.0,
+                "mujoco_c_control_steps_per_s": 10000.0,
+            },
+        ],
+        "rollout": [
+            {"batch": 256, "control_steps_per_s": 1600.0, "backend": "mjx"},
+            {"batch": 256, "control_steps_per_s": 4000.0, "backend": "mujoco"},
+        ],
+        "train": [{"batch": 64, "control_steps_per_s": 400.0}, {"batch": 1024, "control_steps_per_s": 9.0}],
+    }
     bench.add_physics_ratios(result)
     assert result["rollout"][0]["physics_cost_ratio"] == pytest.approx(1.25)
     assert result["rollout"][1]["physics_cost_ratio"] == pytest.approx(2.0)  # against its own backend

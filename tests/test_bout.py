@@ -52,7 +52,7 @@ def _pressing(cfg: A.ArenaConfig, own: str, other: str, depth: float = 0.01) -> 
     mujoco.mj_kinematics(m, d)
     a, b = _gid(m, own), _gid(m, other)
     reach = m.geom_size[a, 0] + m.geom_size[b, 0] - depth
-    d.qpos[lay.nq:lay.nq + 3] += d.geom_xpos[a] + np.array([reach, 0, 0]) - d.geom_xpos[b]
+    d.qpos[lay.nq : lay.nq + 3] += d.geom_xpos[a] + np.array([reach, 0, 0]) - d.geom_xpos[b]
     return d.qpos.copy()
 
 
@@ -76,8 +76,12 @@ def _manual_max_force(m: mujoco.MjModel, qpos: np.ndarray, pairs, substeps: int)
 def test_glove_damage_equals_clipped_mj_contact_force():
     phys, m = _c_physics(BOX)
     qpos = _pressing(BOX, "p0_right_hand", "p1_head", depth=0.03)
-    forces = phys.host_step(qpos[None].astype(np.float32), np.zeros((1, m.nv), np.float32),
-                            np.zeros((1, m.nv), np.float32), np.zeros((1, m.nu), np.float32))[4]
+    forces = phys.host_step(
+        qpos[None].astype(np.float32),
+        np.zeros((1, m.nv), np.float32),
+        np.zeros((1, m.nv), np.float32),
+        np.zeros((1, m.nu), np.float32),
+    )[4]
     ref = _manual_max_force(m, qpos, A.channels(BOX, m)[0].pairs, 4)
     assert ref > 200.0  # a 3 cm overlap is a hard hit: the clip matters
     np.testing.assert_allclose(forces[0, 0], ref, rtol=1e-4)
@@ -86,8 +90,17 @@ def test_glove_damage_equals_clipped_mj_contact_force():
     env = _env("boxing")
     frame = env.frames_of(jnp.asarray(qpos, jnp.float32), jnp.zeros(m.nv))
     qv = jnp.zeros((2, env.layout.nv))
-    out = env.task.step(env.task.init(None, frame), frame, frame, jnp.asarray(forces[0]), jnp.zeros(2, bool),
-                        qv, qv, jnp.asarray(10), None)
+    out = env.task.step(
+        env.task.init(None, frame),
+        frame,
+        frame,
+        jnp.asarray(forces[0]),
+        jnp.zeros(2, bool),
+        qv,
+        qv,
+        jnp.asarray(10),
+        None,
+    )
     np.testing.assert_allclose(out.rewards[:, 0], [200.0, -200.0])
     np.testing.assert_allclose(out.info["damage_dealt"], [200.0, 0.0])
 
@@ -98,8 +111,12 @@ def test_hit_on_a_non_target_link_scores_nothing():
     qpos = _pressing(BOX, "p0_right_hand", "p1_left_upper_arm")
     blocked = _manual_max_force(m, qpos, [(_gid(m, "p0_right_hand"), _gid(m, "p1_left_upper_arm"))], 4)
     assert blocked > 10.0
-    out = phys.host_step(qpos[None].astype(np.float32), np.zeros((1, m.nv), np.float32),
-                         np.zeros((1, m.nv), np.float32), np.zeros((1, m.nu), np.float32))
+    out = phys.host_step(
+        qpos[None].astype(np.float32),
+        np.zeros((1, m.nv), np.float32),
+        np.zeros((1, m.nv), np.float32),
+        np.zeros((1, m.nu), np.float32),
+    )
     np.testing.assert_array_equal(out[4], 0.0)
 
 
@@ -110,8 +127,12 @@ def test_mjx_and_mujoco_c_scoring_forces_agree():
     px = backends.MJXPhysics(m, mx, 4, A.channels(cfg, m))
     # Player 0's blade tip (the zero pose holds it horizontal, along +x) on player 1's torso.
     qpos = _pressing(cfg, "p0_sword_blade", "p1_torso", depth=0.005)
-    c = phys.host_step(qpos[None].astype(np.float32), np.zeros((1, m.nv), np.float32),
-                       np.zeros((1, m.nv), np.float32), np.zeros((1, m.nu), np.float32))[4][0]
+    c = phys.host_step(
+        qpos[None].astype(np.float32),
+        np.zeros((1, m.nv), np.float32),
+        np.zeros((1, m.nv), np.float32),
+        np.zeros((1, m.nu), np.float32),
+    )[4][0]
     with jit_enabled():
         d = mjx.make_data(mx).replace(qpos=jnp.asarray(qpos, jnp.float32))
         _, ground, fx = jax.jit(px.step_forces)(d, jnp.zeros(m.nu))
@@ -132,7 +153,7 @@ def _scripted_hit(sport: str, sim_hz: float, speed: float, lateral: float) -> np
         d.qpos[jid("p0_right_hand_y")] = np.pi / 2  # the blade along the arm
     d.qpos[[2, lay.nq + 2]] += 0.02
     yaw = np.array([0.0, 0.0, 0.0, 1.0])  # player 1 turned 180 degrees to face player 0
-    d.qpos[lay.nq + 3:lay.nq + 7] = yaw
+    d.qpos[lay.nq + 3 : lay.nq + 7] = yaw
     mujoco.mj_kinematics(m, d)
     if sport == "boxing":
         tip, r = d.geom_xpos[_gid(m, "p0_right_hand")], m.geom_size[_gid(m, "p0_right_hand"), 0]
@@ -142,12 +163,12 @@ def _scripted_hit(sport: str, sim_hz: float, speed: float, lateral: float) -> np
         assert d.xmat[sword].reshape(3, 3)[0, 0] > 0.99  # the blade points along +x
     chest = d.geom_xpos[_gid(m, "p1_torso")]
     gap = 0.10 + r + m.geom_size[_gid(m, "p1_torso"), 0]
-    d.qpos[lay.nq:lay.nq + 3] += tip + np.array([gap, lateral, 0.0]) - chest
+    d.qpos[lay.nq : lay.nq + 3] += tip + np.array([gap, lateral, 0.0]) - chest
     qvel = np.zeros(m.nv)
     qvel[0] = speed
     q, v = d.qpos[None].astype(np.float32), qvel[None].astype(np.float32)
     w = np.zeros((1, m.nv), np.float32)
-    target = np.concatenate([d.qpos[7:lay.nq], d.qpos[lay.nq + 7:]])[None].astype(np.float32)
+    target = np.concatenate([d.qpos[7 : lay.nq], d.qpos[lay.nq + 7 :]])[None].astype(np.float32)
     out = []
     for _ in range(6):
         q, v, w, _, f = phys.host_step(q, v, w, target)
@@ -166,7 +187,7 @@ def test_scripted_punch_and_thrust_always_register_a_touch(sport, speed):
             first = int(np.argmax(f[:, 0] >= 1.0))
             # Until then the defender, standing still, scores nothing (later the lunging body
             # runs into its hanging gloves).
-            assert f[:first + 1, 1].max() == 0.0
+            assert f[: first + 1, 1].max() == 0.0
 
 
 def _arm_punch(sim_hz: float, speed: float, lateral: float, lead_s: float = 0.1) -> np.ndarray:
@@ -182,7 +203,7 @@ def _arm_punch(sim_hz: float, speed: float, lateral: float, lead_s: float = 0.1)
     d.qpos[m.jnt_qposadr[joint("p0_right_shoulder_y")]] = -np.pi / 2 + 0.6  # the arm forward, low
     d.qpos[m.jnt_qposadr[joint("p0_right_elbow")]] = -1.2  # and bent
     d.qpos[[2, lay.nq + 2]] += 0.02
-    d.qpos[lay.nq + 3:lay.nq + 7] = [0.0, 0.0, 0.0, 1.0]  # player 1 faces player 0
+    d.qpos[lay.nq + 3 : lay.nq + 7] = [0.0, 0.0, 0.0, 1.0]  # player 1 faces player 0
     mujoco.mj_forward(m, d)
     glove = _gid(m, "p0_right_hand")
     arm = [m.jnt_dofadr[joint(f"p0_right_{n}")] for n in ("shoulder_x", "shoulder_y", "shoulder_z", "elbow")]
@@ -191,10 +212,10 @@ def _arm_punch(sim_hz: float, speed: float, lateral: float, lead_s: float = 0.1)
     qd = np.linalg.lstsq(jac[:, arm], np.array([speed, 0.0, 0.0]), rcond=None)[0]
     np.testing.assert_allclose(jac[:, arm] @ qd, [speed, 0.0, 0.0], atol=1e-9)
     gap = 0.10 + m.geom_size[glove, 0] + m.geom_size[_gid(m, "p1_torso"), 0]
-    d.qpos[lay.nq:lay.nq + 3] += d.geom_xpos[glove] + np.array([gap, lateral, 0.0]) - d.geom_xpos[_gid(m, "p1_torso")]
+    d.qpos[lay.nq : lay.nq + 3] += d.geom_xpos[glove] + np.array([gap, lateral, 0.0]) - d.geom_xpos[_gid(m, "p1_torso")]
     qvel = np.zeros(m.nv)
     qvel[arm] = qd
-    target = np.concatenate([d.qpos[7:lay.nq], d.qpos[lay.nq + 7:]])
+    target = np.concatenate([d.qpos[7 : lay.nq], d.qpos[lay.nq + 7 :]])
     target[np.asarray(arm) - 6] += lead_s * qd
     q, v, w = d.qpos[None].astype(np.float32), qvel[None].astype(np.float32), np.zeros((1, m.nv), np.float32)
     out = []
@@ -220,8 +241,15 @@ def _env(sport: str, backend: str = "mujoco", **kw) -> BoutEnv:
     clip = make_test_clip(num_frames=40, root_vel=(0.0, 0.0, 0.0), sword_shield=ss)
     lib = MotionLib.from_clips([clip])
     kw.setdefault("task", TaskConfig(name=sport))
-    cfg = EnvConfig(physics=PhysicsConfig(sim_hz=120.0, sword_shield=ss, backend=backend), init_motions=("x",),
-                    groups=(), players=2, arena=A.ArenaConfig(sport=sport), policy_frames=1, **kw)
+    cfg = EnvConfig(
+        physics=PhysicsConfig(sim_hz=120.0, sword_shield=ss, backend=backend),
+        init_motions=("x",),
+        groups=(),
+        players=2,
+        arena=A.ArenaConfig(sport=sport),
+        policy_frames=1,
+        **kw,
+    )
     return BoutEnv(cfg, init_lib=lib)
 
 
@@ -230,8 +258,10 @@ def _frames(env: BoutEnv, xy, yaw=(0.0, np.pi)) -> object:
     m = env.mj
     nq = env.layout.nq
     q1 = np.asarray(m.qpos0[:nq], np.float32)
-    qs = [place(jnp.asarray(q1), jnp.zeros(env.layout.nv), jnp.asarray(p, jnp.float32), jnp.asarray(a))[0]
-          for p, a in zip(np.asarray(xy, np.float32), yaw)]
+    qs = [
+        place(jnp.asarray(q1), jnp.zeros(env.layout.nv), jnp.asarray(p, jnp.float32), jnp.asarray(a))[0]
+        for p, a in zip(np.asarray(xy, np.float32), yaw)
+    ]
     return env.frames_of(jnp.concatenate(qs), jnp.zeros(m.nv))
 
 
@@ -323,10 +353,16 @@ def test_players_see_mirror_images_in_a_mirrored_scene(sport):
 def _swap(env: BoutEnv, s: BoutState) -> BoutState:
     swap = lambda x, n: jnp.concatenate([x[n:], x[:n]])
     lay = env.layout
-    data = s.data.replace(qpos=swap(s.data.qpos, lay.nq), qvel=swap(s.data.qvel, lay.nv),
-                          qacc_warmstart=swap(s.data.qacc_warmstart, lay.nv))
-    return s.replace(data=data, frame=jax.tree.map(lambda x: x[::-1], s.frame),
-                     goal=s.goal.replace(rope_steps=s.goal.rope_steps[::-1]))
+    data = s.data.replace(
+        qpos=swap(s.data.qpos, lay.nq),
+        qvel=swap(s.data.qvel, lay.nv),
+        qacc_warmstart=swap(s.data.qacc_warmstart, lay.nv),
+    )
+    return s.replace(
+        data=data,
+        frame=jax.tree.map(lambda x: x[::-1], s.frame),
+        goal=s.goal.replace(rope_steps=s.goal.rope_steps[::-1]),
+    )
 
 
 def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
@@ -338,7 +374,7 @@ def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
         # Each player's own view is the same after the swap, except its position and facing in
         # the arena, which it sees from its side (player 1's view is turned by 180 degrees).
         flip = np.ones(env.obs_size)
-        flip[env.body_obs_size:env.body_obs_size + 4] = -1.0
+        flip[env.body_obs_size : env.body_obs_size + 4] = -1.0
         np.testing.assert_allclose(jax.vmap(env.policy_obs)(sw), obs[:, ::-1] * flip, atol=1e-5)
         rng = np.random.default_rng(0)
         for t in range(12):
@@ -354,16 +390,31 @@ def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
 def _learner(sport: str = "boxing", **kw):
     from jaxmotion.training.learner import NetConfig, PPOConfig, TrainConfig
     from jaxmotion.training.runs import make_learner
-    env = _env(sport, task=TaskConfig(name=sport, boxing=dataclasses.replace(
-        TaskConfig().boxing, start_distance=(0.7, 0.9))), episode_steps=30)
-    cfg = TrainConfig(env=env.cfg, net=NetConfig(policy_hidden=(16,), critic_hidden=(16,)),
-                      ppo=PPOConfig(num_envs=2, horizon=4, minibatch_size=8, multi_objective=False,
-                                    terminate_reward=None, absorbing_termination=False), **kw)
+
+    env = _env(
+        sport,
+        task=TaskConfig(name=sport, boxing=dataclasses.replace(TaskConfig().boxing, start_distance=(0.7, 0.9))),
+        episode_steps=30,
+    )
+    cfg = TrainConfig(
+        env=env.cfg,
+        net=NetConfig(policy_hidden=(16,), critic_hidden=(16,)),
+        ppo=PPOConfig(
+            num_envs=2,
+            horizon=4,
+            minibatch_size=8,
+            multi_objective=False,
+            terminate_reward=None,
+            absorbing_termination=False,
+        ),
+        **kw,
+    )
     return make_learner(cfg, env=env)
 
 
 def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
     from jaxmotion.evaluation.bouts import play, write_bout_html
+
     learner = _learner()
     assert learner.players == 2 and learner.cfg.samples_per_iteration == 2 * 4 * 2
     with jit_enabled():
@@ -393,16 +444,22 @@ def test_self_play_on_a_frozen_imitation_policy(tmp_path, data_dir):
     from jaxmotion.training import checkpoint as ckpt
     from jaxmotion.envs.humanoid import GroupConfig
     from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+
     walk = ("compositemotion/locomotion/lafan1_walk1_subject1_100_1170.json",)
-    icfg = TrainConfig(env=EnvConfig(init_motions=walk, groups=(GroupConfig(name="full", motions=walk),),
-                                     policy_frames=1, episode_steps=20),
-                       net=NetConfig(policy_hidden=(16,), critic_hidden=(16,), disc_hidden=(8,), disc_heads=2),
-                       ppo=PPOConfig(num_envs=4, horizon=2, minibatch_size=8), disc=DiscConfig(minibatch_size=8))
+    icfg = TrainConfig(
+        env=EnvConfig(
+            init_motions=walk, groups=(GroupConfig(name="full", motions=walk),), policy_frames=1, episode_steps=20
+        ),
+        net=NetConfig(policy_hidden=(16,), critic_hidden=(16,), disc_hidden=(8,), disc_heads=2),
+        ppo=PPOConfig(num_envs=4, horizon=2, minibatch_size=8),
+        disc=DiscConfig(minibatch_size=8),
+    )
     with jit_enabled():
         meta_ts = Learner(icfg).init(jax.random.PRNGKey(3))
     mean = meta_ts.policy_params["params"]["mean"]  # actions far from zero, so that following shows
-    meta_ts = meta_ts.replace(policy_params={"params": {**meta_ts.policy_params["params"],
-                                                        "mean": {**mean, "kernel": 20.0 * mean["kernel"]}}})
+    meta_ts = meta_ts.replace(
+        policy_params={"params": {**meta_ts.policy_params["params"], "mean": {**mean, "kernel": 20.0 * mean["kernel"]}}}
+    )
     run = tmp_path / "imitate" / "boxing" / "20260101-000000"
     ckpt.write_config(run, "imitate/boxing", icfg)
     mgr = ckpt.manager(run)
@@ -434,5 +491,6 @@ def test_two_player_config_errors_are_clear():
     with pytest.raises(ValueError, match="not one of"):
         A.ArenaConfig(sport="tennis")
     with pytest.raises(ValueError, match="two-player task"):
-        BoutEnv(EnvConfig(arena=A.ArenaConfig(sport="boxing"), **dict(base, task=TaskConfig(name="location"))),
-                init_lib=lib)
+        BoutEnv(
+            EnvConfig(arena=A.ArenaConfig(sport="boxing"), **dict(base, task=TaskConfig(name="location"))), init_lib=lib
+        )

@@ -203,18 +203,14 @@ _EXPERIMENT_FILE = textwrap.dedent(
 def experiments(tmp_path):
     (tmp_path / "composite").mkdir()
     (tmp_path / "composite" / "chest_open+squat.py").write_text(_EXPERIMENT_FILE)
-    (tmp_path / "smoke.py").write_text(
-        _EXPERIMENT_FILE.replace('"chest_open"', '"smoke"')
-    )
+    (tmp_path / "smoke.py").write_text(_EXPERIMENT_FILE.replace('"chest_open"', '"smoke"'))
     (tmp_path / "_common.py").write_text("X = 1\n")
     (tmp_path / "noconfig.py").write_text("X = 1\n")
     return tmp_path
 
 
 def test_list_experiments(experiments):
-    assert config.list_experiments(experiments) == [
-        "composite/chest_open+squat", "noconfig", "smoke"
-    ]
+    assert config.list_experiments(experiments) == ["composite/chest_open+squat", "noconfig", "smoke"]
 
 
 def test_load_experiment_with_slash_and_plus(experiments):

@@ -23,8 +23,7 @@ def _moving_clip():
     """A clip with every joint moving smoothly, a turning and translating root."""
     t = np.arange(40)[:, None] / 30.0
     dof = 0.3 * np.sin(2.0 * t + np.arange(28)[None] * 0.7)
-    return make_test_clip(40, 30.0, root_vel=(0.5, 0.2, 0.0), root_height=1.0, yaw_rate=0.8,
-                          dof_pos=dof, name="moving")
+    return make_test_clip(40, 30.0, root_vel=(0.5, 0.2, 0.0), root_height=1.0, yaw_rate=0.8, dof_pos=dof, name="moving")
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +49,9 @@ def _zero_gain_env(env, cfg=None):
     m = sim.mj_model(env.cfg.physics)
     m.actuator_gainprm[:, 0] = 0
     m.actuator_biasprm[:, 1:3] = 0
-    phys = backends.make_physics(env.cfg.physics.backend, m, build_mjcf(False), sim.mjx.put_model(m),
-                                 env.cfg.physics.substeps)
+    phys = backends.make_physics(
+        env.cfg.physics.backend, m, build_mjcf(False), sim.mjx.put_model(m), env.cfg.physics.substeps
+    )
     return HumanoidEnv(cfg or env.cfg, motion_libs=env.motion_libs, init_lib=env.init_lib, physics=phys)
 
 
@@ -102,6 +102,7 @@ def test_a_collapse_touching_with_links_up_is_no_fall_under_a_low_fall_height(en
     """No servo: the character collapses and its knees, hands or pelvis touch the floor, but body
     origins (joints) stay above 1 mm, so with ``fall_height`` 1 mm the episode goes on."""
     import dataclasses
+
     zero = _zero_gain_env(env, dataclasses.replace(env.cfg, fall_height=1e-3))
     with jit_enabled():
         zfns = (jax.jit(jax.vmap(zero.reset)), jax.jit(jax.vmap(zero.step)), None)
@@ -235,9 +236,10 @@ def test_reference_windows_stay_within_the_joint_ranges(within):
     """A clip held in a pose 0.3 rad beyond every joint's upper limit: with ``ref_within_limits``
     the discriminators' reference windows are the views of the pose clamped to the ranges (what
     the simulated character can show), without it those of the raw pose."""
-    ch_env = HumanoidEnv(EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")),
-                                   ref_within_limits=within),
-                         motion_libs=(MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0, 0, 0))]),) * 2)
+    ch_env = HumanoidEnv(
+        EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")), ref_within_limits=within),
+        motion_libs=(MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0, 0, 0))]),) * 2,
+    )
     hi = np.asarray(ch_env._hi)
     beyond = make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), dof_pos=hi + 0.3, name="beyond")
     lib = MotionLib.from_clips([beyond])
@@ -250,8 +252,12 @@ def test_reference_windows_stay_within_the_joint_ranges(within):
     pos, quat = env.poses_of(jnp.asarray(expect_q))
     frames = env.cfg.groups[0].frames
     for g, (links, anchor) in enumerate(env.group_idx):
-        one = O.disc_obs(jnp.broadcast_to(pos, (frames,) + pos.shape),
-                         jnp.broadcast_to(quat, (frames,) + quat.shape), links, int(anchor))
+        one = O.disc_obs(
+            jnp.broadcast_to(pos, (frames,) + pos.shape),
+            jnp.broadcast_to(quat, (frames,) + quat.shape),
+            links,
+            int(anchor),
+        )
         np.testing.assert_allclose(views[g], np.broadcast_to(one, views[g].shape), atol=1e-4)
 
 
@@ -259,6 +265,7 @@ def test_lowest_point_matches_mujoco(env):
     """The start's lift above the floor uses the lowest geom point of the lean kinematics; MuJoCo C
     poses the same geoms for the reference."""
     from jaxmotion.motion.level import _lowest_points
+
     m = sim.mj_model(env.cfg.physics)
     d = mujoco.MjData(m)
     geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] != 0 and m.geom_type[g] in (2, 3, 6)]

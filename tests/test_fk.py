@@ -45,10 +45,10 @@ def _random_state(m: mujoco.MjModel, rng: np.random.Generator) -> tuple[np.ndarr
         adr, typ = m.jnt_qposadr[j], m.jnt_type[j]
         if typ == mujoco.mjtJoint.mjJNT_FREE:
             q = rng.normal(size=4)
-            qpos[adr:adr + 7] = np.concatenate([rng.normal(size=3), q / np.linalg.norm(q)])
+            qpos[adr : adr + 7] = np.concatenate([rng.normal(size=3), q / np.linalg.norm(q)])
         elif typ == mujoco.mjtJoint.mjJNT_BALL:
             q = rng.normal(size=4)
-            qpos[adr:adr + 4] = q / np.linalg.norm(q)
+            qpos[adr : adr + 4] = q / np.linalg.norm(q)
         else:
             qpos[adr] = rng.uniform(-1.5, 1.5)
     return qpos, rng.normal(size=m.nv) * 2.0

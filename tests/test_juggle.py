@@ -33,9 +33,19 @@ def _run(steps: int, catcher: bool):
                     hands[h] = np.asarray(nxt_p)
         b_new, thrown, caught, forced = step(b, jnp.asarray(t), jnp.asarray(hands), hand_vel, DT)
         r = J.hand_rewards(b_new, thrown, jnp.asarray(hands), hand_vel, jnp.asarray(t), DT, V_STAR)
-        log.append(dict(t=t, thrower=np.asarray(b.to_hand)[np.asarray(thrown)], thrown=np.asarray(thrown),
-                        caught=np.asarray(caught), forced=np.asarray(forced), holder=np.asarray(b_new.holder),
-                        pos=np.asarray(b_new.pos), throw_at=np.asarray(b_new.throw_at), r=np.asarray(r)))
+        log.append(
+            dict(
+                t=t,
+                thrower=np.asarray(b.to_hand)[np.asarray(thrown)],
+                thrown=np.asarray(thrown),
+                caught=np.asarray(caught),
+                forced=np.asarray(forced),
+                holder=np.asarray(b_new.holder),
+                pos=np.asarray(b_new.pos),
+                throw_at=np.asarray(b_new.throw_at),
+                r=np.asarray(r),
+            )
+        )
         b = b_new
     return log
 
@@ -82,9 +92,15 @@ def test_catch_reward_by_hand():
     """All released; the right hand's ball falls straight onto it: d = 0, dh = 0 -> 1.09; with the
     hand 0.3 m to the side (and 0.2 m low): the formula."""
     b = J.initial_balls(jnp.asarray(HOME))
-    b = b.replace(released=jnp.ones(3, bool), holder=jnp.asarray([-1, 1, 0]), to_hand=jnp.asarray([1, 1, 0]),
-                  pos=jnp.asarray([[0.0, -0.2, 1.5], HOME[1], HOME[0]]), vel=jnp.zeros((3, 3)),
-                  release_h=jnp.asarray([1.0, 1.0, 1.0]), throw_at=jnp.asarray([20, 30, 40]))
+    b = b.replace(
+        released=jnp.ones(3, bool),
+        holder=jnp.asarray([-1, 1, 0]),
+        to_hand=jnp.asarray([1, 1, 0]),
+        pos=jnp.asarray([[0.0, -0.2, 1.5], HOME[1], HOME[0]]),
+        vel=jnp.zeros((3, 3)),
+        release_h=jnp.asarray([1.0, 1.0, 1.0]),
+        throw_at=jnp.asarray([20, 30, 40]),
+    )
     none = jnp.zeros(3, bool)
     r = J.hand_rewards(b, none, jnp.asarray(HOME), jnp.zeros((2, 3)), jnp.asarray(5), DT, V_STAR)
     assert float(r[1]) == pytest.approx(0.1 + 0.9 * 1.1, rel=1e-5)
@@ -93,12 +109,19 @@ def test_catch_reward_by_hand():
     hands[1] += [0.3, 0.0, -0.2]
     r = J.hand_rewards(b, none, jnp.asarray(hands), jnp.zeros((2, 3)), jnp.asarray(5), DT, V_STAR)
     d, dh = 0.3, 0.2  # the ball falls to 0.8 m, straight down
-    want = 0.1 * math.exp(-20 * dh ** 2) + 0.9 * (0.9 * math.exp(-20 * d ** 2) + 0.2 * math.exp(-d ** 2))
+    want = 0.1 * math.exp(-20 * dh**2) + 0.9 * (0.9 * math.exp(-20 * d**2) + 0.2 * math.exp(-(d**2)))
     assert float(r[1]) == pytest.approx(want, rel=1e-4)
     # A missed ball pays only the height term.
-    r = J.hand_rewards(b.replace(missed=jnp.asarray([True, False, False])), none, jnp.asarray(hands),
-                       jnp.zeros((2, 3)), jnp.asarray(5), DT, V_STAR)
-    assert float(r[1]) == pytest.approx(0.1 * math.exp(-20 * dh ** 2), rel=1e-4)
+    r = J.hand_rewards(
+        b.replace(missed=jnp.asarray([True, False, False])),
+        none,
+        jnp.asarray(hands),
+        jnp.zeros((2, 3)),
+        jnp.asarray(5),
+        DT,
+        V_STAR,
+    )
+    assert float(r[1]) == pytest.approx(0.1 * math.exp(-20 * dh**2), rel=1e-4)
 
 
 def test_landing_point_by_hand():
@@ -137,8 +160,9 @@ def test_task_reports_throws_and_release_error_in_a_scene_step():
     pos[0] = [0, 0, 0.9]
     vel = np.zeros((nb, 3), np.float32)
     vel[_Env.character.body_index("left_hand")] = [0, 0, 1.0]
-    frame = LinkFrames(jnp.asarray(pos), jnp.tile(jnp.asarray([1.0, 0, 0, 0]), (nb, 1)), jnp.asarray(vel),
-                       jnp.zeros((nb, 3)))
+    frame = LinkFrames(
+        jnp.asarray(pos), jnp.tile(jnp.asarray([1.0, 0, 0, 0]), (nb, 1)), jnp.asarray(vel), jnp.zeros((nb, 3))
+    )
     goal = task.init(jax.random.PRNGKey(0), frame)
     assert task.observe(goal, frame).shape == (task.goal_size,) == (23,)
     out = task.step(goal, frame, frame, jax.random.PRNGKey(1))
@@ -163,8 +187,14 @@ def test_physical_balls_fly_in_the_scene_and_are_never_lost():
 
     lib = MotionLib.from_clips([make_test_clip(20, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.9)])
     balls = tuple(PropConfig(name=f"ball{i}", radius=J.RADIUS, restitution=0.0) for i in range(3))
-    cfg = EnvConfig(physics=PhysicsConfig(props=balls), groups=(GroupConfig(name="full"),), policy_frames=2,
-                    early_termination=False, episode_steps=100, task=TaskConfig(name="juggle+location"))
+    cfg = EnvConfig(
+        physics=PhysicsConfig(props=balls),
+        groups=(GroupConfig(name="full"),),
+        policy_frames=2,
+        early_termination=False,
+        episode_steps=100,
+        task=TaskConfig(name="juggle+location"),
+    )
     env = HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
     with jit_enabled():
         reset, step = jax.jit(env.reset), jax.jit(env.step)

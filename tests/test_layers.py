@@ -35,8 +35,9 @@ def imports_of(path: Path, known: set[str]) -> set[str]:
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             # `from pkg import name`: the submodule pkg.name if there is one, else pkg itself
-            names = [f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in known else node.module
-                     for a in node.names]
+            names = [
+                f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in known else node.module for a in node.names
+            ]
         else:
             continue
         for n in names:
@@ -64,8 +65,12 @@ def layer_of(module: str) -> int:
 
 
 def upward_imports(graph: dict[str, set[str]]) -> list[str]:
-    return sorted(f"{a} ({LAYERS[layer_of(a)] or 'entry'}) imports {b} ({LAYERS[layer_of(b)] or 'entry'})"
-                  for a, deps in graph.items() for b in deps if layer_of(b) > layer_of(a))
+    return sorted(
+        f"{a} ({LAYERS[layer_of(a)] or 'entry'}) imports {b} ({LAYERS[layer_of(b)] or 'entry'})"
+        for a, deps in graph.items()
+        for b in deps
+        if layer_of(b) > layer_of(a)
+    )
 
 
 def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -130,4 +135,6 @@ def test_imports_inside_functions_count(tmp_path):
     f = tmp_path / "m.py"
     f.write_text("def f():\n    from jaxmotion.training import learner\n    import jaxmotion.viz.render\n")
     assert imports_of(f, {"jaxmotion.training.learner", "jaxmotion.viz.render", "jaxmotion.training"}) == {
-        "jaxmotion.training.learner", "jaxmotion.viz.render"}
+        "jaxmotion.training.learner",
+        "jaxmotion.viz.render",
+    }

@@ -29,12 +29,21 @@ def _learner() -> Learner:
     env_cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=45, policy_frames=2)
     cfg = TrainConfig(
         env=env_cfg,
-        net=NetConfig(policy_hidden=(64, 64), critic_hidden=(64, 64), disc_hidden=(64, 32), disc_heads=4,
-                      # sigma e^-1.7 ~ 0.18 of the full joint range, with the authors' action
-                      # scale (mid + a * range): the exploration this test was tuned with.
-                      init_log_std=-1.7, state_dependent_std=False),
+        net=NetConfig(
+            policy_hidden=(64, 64),
+            critic_hidden=(64, 64),
+            disc_hidden=(64, 32),
+            disc_heads=4,
+            # sigma e^-1.7 ~ 0.18 of the full joint range, with the authors' action
+            # scale (mid + a * range): the exploration this test was tuned with.
+            init_log_std=-1.7,
+            state_dependent_std=False,
+        ),
         ppo=PPOConfig(num_envs=32, horizon=8, minibatch_size=64, epochs=4, actor_lr=2e-4, critic_lr=1e-3),
-        disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=ITERS, chunk=CHUNK)
+        disc=DiscConfig(lr=1e-4, minibatch_size=64),
+        iterations=ITERS,
+        chunk=CHUNK,
+    )
     return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(stand,), init_lib=stand))
 
 
@@ -56,8 +65,9 @@ def test_short_training_beats_untrained_policies():
 
         @jax.jit
         def disc_reward(policy_state):
-            s = policy_state.replace(disc_params=ts.disc_params, disc_norm=ts.disc_norm,
-                                     env_state=fresh.env_state, obs=fresh.obs)
+            s = policy_state.replace(
+                disc_params=ts.disc_params, disc_norm=ts.disc_norm, env_state=fresh.env_state, obs=fresh.obs
+            )
 
             def body(s, _):
                 s, traj = learner.rollout(s)
@@ -73,9 +83,11 @@ def test_short_training_beats_untrained_policies():
     base_len = np.array([r["episode_length_s"] for r in base])
     trained_err = float(np.mean([err(r) for r in last]))
     trained_len = float(np.mean([r["episode_length_s"] for r in last]))
-    print(f"untrained: error {base_err}, length {base_len}, reward {r_base}; trained (last three chunks): error "
-          f"{[round(err(r), 3) for r in last]}, length {[round(r['episode_length_s'], 2) for r in last]}, "
-          f"reward {r_trained:.3f}")
+    print(
+        f"untrained: error {base_err}, length {base_len}, reward {r_base}; trained (last three chunks): error "
+        f"{[round(err(r), 3) for r in last]}, length {[round(r['episode_length_s'], 2) for r in last]}, "
+        f"reward {r_trained:.3f}"
+    )
     assert r_trained > r_base.max() + max(np.ptp(r_base), 0.02)
     # Below the best untrained seed by their standard deviation. Short RL runs are chaotic: two
     # versions of the trainer that differ only in float rounding (the same gradient penalty

@@ -34,6 +34,7 @@ from jaxmotion.training.learner import Learner, PPOConfig, TrainConfig
 
 # ---- 1: a perfect imitation is indistinguishable from its reference ------------------------
 
+
 def _upper_env(data_dir) -> HumanoidEnv:
     cfg = C.load_experiment("composite/chest_open+squat_cpu")
     return HumanoidEnv(cfg.env)
@@ -57,7 +58,8 @@ def _disc_accuracy(env: HumanoidEnv, fake_fn, ref_fn, var_eps: float, iters: int
         def body(c, xs):
             p, o = c
             (_, m), g = jax.value_and_grad(D.disc_loss, argnums=1, has_aux=True)(
-                net.apply, p, xs[0], xs[1], xs[2], 10.0, "sum_heads")
+                net.apply, p, xs[0], xs[1], xs[2], 10.0, "sum_heads"
+            )
             u, o = opt.update(g, o, p)
             return (optax.apply_updates(p, u), o), m["accuracy"]
 
@@ -113,10 +115,12 @@ def test_normaliser_keeps_a_near_constant_feature_small():
 
 # ---- 2: a fall always lowers the return ----------------------------------------------------
 
+
 def _returns(rewards, terminated, values, next_values, pc: PPOConfig):
     truncated = jnp.zeros_like(terminated)
-    r, nv, term, trunc = G.apply_termination(rewards, next_values, terminated, truncated,
-                                             pc.terminate_reward, pc.gamma, pc.absorbing_termination)
+    r, nv, term, trunc = G.apply_termination(
+        rewards, next_values, terminated, truncated, pc.terminate_reward, pc.gamma, pc.absorbing_termination
+    )
     return G.compute_gae(r, values, nv, term, trunc, pc.gamma, pc.lam)[1]
 
 
@@ -141,14 +145,16 @@ def test_fall_lowers_the_return_even_with_every_reward_at_its_minimum():
 def test_learner_rejects_a_fall_worth_as_much_as_the_reward_floor():
     stand = MotionLib.from_clips([make_test_clip(10, 30.0)])
     env_cfg = EnvConfig(groups=(GroupConfig(name="full"),))
-    cfg = TrainConfig(env=env_cfg, ppo=PPOConfig(terminate_reward=-1.0, num_envs=4, horizon=4,
-                                                 minibatch_size=16))
+    cfg = TrainConfig(env=env_cfg, ppo=PPOConfig(terminate_reward=-1.0, num_envs=4, horizon=4, minibatch_size=16))
     with pytest.raises(ValueError, match="terminate_reward"):
-        Learner(dataclasses.replace(cfg, disc=dataclasses.replace(cfg.disc, minibatch_size=16)),
-                env=HumanoidEnv(env_cfg, motion_libs=(stand,), init_lib=stand))
+        Learner(
+            dataclasses.replace(cfg, disc=dataclasses.replace(cfg.disc, minibatch_size=16)),
+            env=HumanoidEnv(env_cfg, motion_libs=(stand,), init_lib=stand),
+        )
 
 
 # ---- 3: PopArt statistics at returns near -20 ------------------------------------------------
+
 
 def test_popart_std_near_minus_20_is_estimated_and_never_floored():
     rng = np.random.default_rng(0)
@@ -171,13 +177,14 @@ def test_popart_variance_matches_float64_mixture():
     w = beta * (1 - beta) ** np.arange(len(batches))[::-1]
     w = w / w.sum()
     m1 = np.array([b.mean() for b in batches])
-    m2 = np.array([np.mean(b ** 2) for b in batches])
+    m2 = np.array([np.mean(b**2) for b in batches])
     mean = (w * m1).sum()
     np.testing.assert_allclose(float(state.mean[0]), mean, rtol=1e-5)
-    np.testing.assert_allclose(float(PA.std(state)[0]), np.sqrt((w * m2).sum() - mean ** 2), rtol=1e-4)
+    np.testing.assert_allclose(float(PA.std(state)[0]), np.sqrt((w * m2).sum() - mean**2), rtol=1e-4)
 
 
 # ---- 4: action range and policy history ------------------------------------------------------
+
 
 def test_half_action_reaches_the_joint_limits_as_in_the_authors_code():
     stand = MotionLib.from_clips([make_test_clip(10, 30.0)])

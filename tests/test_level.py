@@ -17,8 +17,17 @@ def _standing(num_frames=4, tilt_deg=0.0, lift=0.0):
     c = dataclasses.replace(c, root_pos=c.root_pos + [0, 0, 0.01 + lift - sole_points(c)[0, :, 2].min()])
     h = np.radians(tilt_deg) / 2
     q = np.broadcast_to([np.cos(h), np.sin(h), 0.0, 0.0], (num_frames, 4))
-    return build_clip(name="stand", path="", format="generated", fps=c.fps, loop=False, sword_shield=False,
-                      root_pos=c.root_pos, root_quat=q, dof_pos=c.dof_pos)
+    return build_clip(
+        name="stand",
+        path="",
+        format="generated",
+        fps=c.fps,
+        loop=False,
+        sword_shield=False,
+        root_pos=c.root_pos,
+        root_quat=q,
+        dof_pos=c.dof_pos,
+    )
 
 
 def test_a_rolled_standing_pose_is_rolled_back_onto_both_feet():
@@ -44,14 +53,24 @@ def test_the_levelled_pose_is_clamped_to_the_joint_ranges_first():
     ch = character(False)
     c = _standing()
     over = np.broadcast_to(ch.joint_range[:, 1] + 0.3, c.dof_pos.shape)
-    c = build_clip(name="over", path="", format="generated", fps=c.fps, loop=False, sword_shield=False,
-                   root_pos=c.root_pos, root_quat=c.root_quat, dof_pos=over)
+    c = build_clip(
+        name="over",
+        path="",
+        format="generated",
+        fps=c.fps,
+        loop=False,
+        sword_shield=False,
+        root_pos=c.root_pos,
+        root_quat=c.root_quat,
+        dof_pos=over,
+    )
     lv = level_feet(c)
     np.testing.assert_allclose(lv.dof_pos, np.broadcast_to(ch.joint_range[:, 1], c.dof_pos.shape))
 
 
 def test_the_shared_squat_stands_on_both_feet_after_levelling(data_dir):
     from jaxmotion.motion.loaders import load_clip
+
     c = load_clip(data_dir / "compositemotion/gym/squat.json", character(False))
     s = sole_points(c)
     assert np.abs(s[:, 0, 2] - s[:, 1, 2]).max() > 0.03  # the measured defect: uneven by centimetres
@@ -65,6 +84,7 @@ def test_the_shared_squat_stands_on_both_feet_after_levelling(data_dir):
 def test_a_level_feet_name_that_no_clip_has_is_an_error():
     from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
     from jaxmotion.motion.motionlib import MotionLib
+
     lib = MotionLib.from_clips([make_test_clip(8)])
     cfg = EnvConfig(groups=(GroupConfig(name="full"),), level_feet=("sqaut",))
     with pytest.raises(ValueError, match="sqaut"):

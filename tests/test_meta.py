@@ -26,10 +26,15 @@ AIM = ("compositemotion/aiming/lafan1_aiming2_subject3_140_970.json",)
 
 def _cfg(task: str, groups, **kw) -> TrainConfig:
     env = EnvConfig(init_motions=WALK, groups=groups, episode_steps=20, policy_frames=2, task=TaskConfig(name=task))
-    return TrainConfig(env=env, net=NetConfig(policy_hidden=(32, 32), critic_hidden=(32, 32), disc_hidden=(16, 16),
-                                              disc_heads=2),
-                       ppo=PPOConfig(num_envs=8, horizon=4, minibatch_size=16, epochs=1),
-                       disc=DiscConfig(minibatch_size=16), iterations=1, chunk=1, **kw)
+    return TrainConfig(
+        env=env,
+        net=NetConfig(policy_hidden=(32, 32), critic_hidden=(32, 32), disc_hidden=(16, 16), disc_heads=2),
+        ppo=PPOConfig(num_envs=8, horizon=4, minibatch_size=16, epochs=1),
+        disc=DiscConfig(minibatch_size=16),
+        iterations=1,
+        chunk=1,
+        **kw,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -53,8 +58,11 @@ def meta_run(tmp_path_factory, data_dir):
 
 @pytest.fixture(scope="module")
 def incremental(meta_run):
-    cfg = _cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2), GroupConfig(name="lower", motions=WALK)),
-               meta=str(meta_run.parent))  # a folder of runs: its newest is taken
+    cfg = _cfg(
+        "aim+location",
+        (GroupConfig(name="upper", motions=AIM, frames=2), GroupConfig(name="lower", motions=WALK)),
+        meta=str(meta_run.parent),
+    )  # a folder of runs: its newest is taken
     with jit_enabled():
         learner = make_learner(cfg)
         ts = learner.init(jax.random.PRNGKey(0))
@@ -75,6 +83,7 @@ def test_meta_run_must_exist(tmp_path):
         resolve_run(tmp_path)
     # The CLI says so in one line instead of a traceback.
     from jaxmotion import train as T
+
     assert T.main(["incremental/aim+walk", f"meta={tmp_path}"]) == 2
 
 
@@ -87,7 +96,7 @@ def test_incremental_policy_starts_as_its_meta_policy(incremental, meta_run):
         w = jax.jit(lambda o: learner.policy_weights(ts, o))(obs)
         # The meta policy acts on its own slice: the body state and the location block of the goal.
         body = learner.env.body_obs_size
-        ref = jax.jit(lambda o: learner.meta.learner.act(ts.meta, o, None)[0])(obs[:, :body + 4])
+        ref = jax.jit(lambda o: learner.meta.learner.act(ts.meta, o, None)[0])(obs[:, : body + 4])
     np.testing.assert_allclose(a_meta, ref, atol=1e-6)
     np.testing.assert_allclose(w, 1 / (1 + np.exp(-3.0)), atol=1e-3)
     assert float(jnp.abs(a_meta).mean()) > 0.3  # a meta policy that acts
@@ -112,7 +121,9 @@ def test_rollout_stores_the_meta_action_and_updates_leave_the_meta_policy_frozen
         ts2, _ = jax.jit(learner.iteration)(ts)
     for a, b in zip(jax.tree.leaves(ts2.meta), jax.tree.leaves(ts.meta)):
         np.testing.assert_array_equal(a, b)
-    moved = [not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(ts2.policy_params), jax.tree.leaves(ts.policy_params))]
+    moved = [
+        not np.array_equal(a, b) for a, b in zip(jax.tree.leaves(ts2.policy_params), jax.tree.leaves(ts.policy_params))
+    ]
     assert any(moved)
 
 
@@ -143,8 +154,9 @@ def test_an_incremental_and_a_plain_run_take_turns_each_with_its_own_networks(in
     each acts through its own learner; before the first switch it is the incremental run alone."""
 
     learner, ts = incremental
-    plain_cfg = _cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2),
-                                      GroupConfig(name="lower", motions=WALK)))
+    plain_cfg = _cfg(
+        "aim+location", (GroupConfig(name="upper", motions=AIM, frames=2), GroupConfig(name="lower", motions=WALK))
+    )
     with jit_enabled():
         plain = Learner(plain_cfg)
         plain_ts = plain.init(jax.random.PRNGKey(1))
@@ -163,8 +175,11 @@ def test_play_acts_each_run_through_its_own_learner(incremental):
     from jaxmotion.viz import play
 
     learner, ts = incremental
-    plain = Learner(_cfg("aim+location", (GroupConfig(name="upper", motions=AIM, frames=2),
-                                          GroupConfig(name="lower", motions=WALK))))
+    plain = Learner(
+        _cfg(
+            "aim+location", (GroupConfig(name="upper", motions=AIM, frames=2), GroupConfig(name="lower", motions=WALK))
+        )
+    )
     with jit_enabled():
         plain_ts = plain.init(jax.random.PRNGKey(1))
         p = play.Player(learner, [ts, plain_ts], seed=0, actors=[learner, plain])

@@ -43,13 +43,9 @@ def test_dtw_matches_double_loop(shape):
 
 
 def test_dtw_hand_computed_3x3():
-    cost = np.array([[1.0, 2.0, 3.0],
-                     [4.0, 1.0, 5.0],
-                     [6.0, 7.0, 1.0]])
+    cost = np.array([[1.0, 2.0, 3.0], [4.0, 1.0, 5.0], [6.0, 7.0, 1.0]])
     # Accumulated: row 0 = 1, 3, 6; row 1 = 5, 2, 7; row 2 = 11, 9, 3.
-    expected = np.array([[1.0, 3.0, 6.0],
-                         [5.0, 2.0, 7.0],
-                         [11.0, 9.0, 3.0]])
+    expected = np.array([[1.0, 3.0, 6.0], [5.0, 2.0, 7.0], [11.0, 9.0, 3.0]])
     np.testing.assert_allclose(metrics.dtw_cost_matrix(cost), expected)
     path_i, path_j = metrics.dtw_path(cost)
     np.testing.assert_array_equal(path_i, [0, 1, 2])
@@ -58,9 +54,7 @@ def test_dtw_hand_computed_3x3():
 
 def test_dtw_hand_computed_off_diagonal():
     # The cheap cells force a horizontal step first: (0,0) -> (0,1) -> (1,2) -> (2,2).
-    cost = np.array([[0.0, 0.0, 9.0],
-                     [9.0, 9.0, 0.0],
-                     [9.0, 9.0, 0.0]])
+    cost = np.array([[0.0, 0.0, 9.0], [9.0, 9.0, 0.0], [9.0, 9.0, 0.0]])
     path_i, path_j = metrics.dtw_path(cost)
     np.testing.assert_array_equal(path_i, [0, 0, 1, 2])
     np.testing.assert_array_equal(path_j, [0, 1, 2, 2])
@@ -121,9 +115,8 @@ def test_offset_along_other_axes_is_euclidean():
 
 
 def test_link_distance_cost_hand_computed():
-    sim = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]])          # [1, 2, 3]
-    ref = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
-                    [[0.0, 3.0, 4.0], [1.0, 0.0, 1.0]]])           # [2, 2, 3]
+    sim = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]])  # [1, 2, 3]
+    ref = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [[0.0, 3.0, 4.0], [1.0, 0.0, 1.0]]])  # [2, 2, 3]
     np.testing.assert_allclose(metrics.link_distance_cost(sim, ref), [[0.0, 3.0]])
 
 

@@ -17,22 +17,37 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from jaxmotion.motion import rotations as rot
-from jaxmotion.motion import (BodyGroup, MotionFileError, MotionLib, default_groups,
-                              find_motion_files, group_indices, load_clip, make_test_clip,
-                              mean_root_speed, mirror_clip, qpos_qvel, resolve_group, sample,
-                              sample_times, sample_windows)
+from jaxmotion.motion import (
+    BodyGroup,
+    MotionFileError,
+    MotionLib,
+    default_groups,
+    find_motion_files,
+    group_indices,
+    load_clip,
+    make_test_clip,
+    mean_root_speed,
+    mirror_clip,
+    qpos_qvel,
+    resolve_group,
+    sample,
+    sample_times,
+    sample_windows,
+)
 from jaxmotion.motion.convert import range_violation, range_wrap, viterbi_branch
 from jaxmotion.motion.motionlib import qpos_of
 from jaxmotion.physics.character import character
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = (Path(os.environ["JAXMOTION_DATA"]) if os.environ.get("JAXMOTION_DATA")
-        else REPO.parent / "shared" / "motions")
+DATA = Path(os.environ["JAXMOTION_DATA"]) if os.environ.get("JAXMOTION_DATA") else REPO.parent / "shared" / "motions"
 SHARED = find_motion_files(DATA) if DATA.is_dir() and any(DATA.iterdir()) else []
-FORMAT_OF_SET = {"compositemotion": "compositemotion_json", "deepmimic": "deepmimic_txt",
-                 "isaacgymenvs": "poselib_npy", "ase_sword_shield": "poselib_npy"}
-needs_data = pytest.mark.skipif(not SHARED, reason=f"shared motion data not found at {DATA} "
-                                                   "(set JAXMOTION_DATA)")
+FORMAT_OF_SET = {
+    "compositemotion": "compositemotion_json",
+    "deepmimic": "deepmimic_txt",
+    "isaacgymenvs": "poselib_npy",
+    "ase_sword_shield": "poselib_npy",
+}
+needs_data = pytest.mark.skipif(not SHARED, reason=f"shared motion data not found at {DATA} (set JAXMOTION_DATA)")
 
 
 @functools.cache
@@ -48,6 +63,7 @@ def _shared(rel: str) -> str:
 
 
 # ----------------------------------------------------------------------------- rotations
+
 
 def _random_quats(n, seed=0):
     q = np.random.default_rng(seed).normal(size=(n, 4))
@@ -111,9 +127,11 @@ def test_heading_and_tan_norm():
 
 # ----------------------------------------------------------------------------- shared clips
 
+
 @needs_data
-@pytest.mark.parametrize("path", [str(p) for p in SHARED] or ["none"],
-                         ids=[str(p.relative_to(DATA)) for p in SHARED] or ["none"])
+@pytest.mark.parametrize(
+    "path", [str(p) for p in SHARED] or ["none"], ids=[str(p.relative_to(DATA)) for p in SHARED] or ["none"]
+)
 def test_shared_clip_loads(path):
     clip = _load(path)
     ch = clip.character
@@ -135,8 +153,9 @@ def test_shared_clip_loads(path):
 def test_shared_sets_present_and_exact():
     sets = {Path(p).relative_to(DATA).parts[0] for p in SHARED}
     assert set(FORMAT_OF_SET) <= sets
-    errs = {s: max(_load(str(p)).fk_error_m for p in SHARED if p.relative_to(DATA).parts[0] == s)
-            for s in FORMAT_OF_SET}
+    errs = {
+        s: max(_load(str(p)).fk_error_m for p in SHARED if p.relative_to(DATA).parts[0] == s) for s in FORMAT_OF_SET
+    }
     # JSON sets are float64 in the file: exact; npy files are float32.
     assert errs["compositemotion"] < 1e-12 and errs["deepmimic"] < 1e-12
     assert errs["isaacgymenvs"] < 1e-6 and errs["ase_sword_shield"] < 1e-6
@@ -162,6 +181,7 @@ def test_compositemotion_layouts_and_loaders_accept_relative_paths(monkeypatch):
 
 # ----------------------------------------------------------------------------- synthetic clips
 
+
 def test_make_test_clip_known_values():
     clip = make_test_clip(num_frames=31, fps=30.0, root_vel=(1.0, 0.0, 0.0), yaw_rate=0.5)
     assert mean_root_speed(clip) == pytest.approx(1.0, abs=1e-12)
@@ -181,8 +201,9 @@ def _wavy_clip(T=61, fps=60.0, loop=False, sword_shield=False):
     n = character(sword_shield).num_dof
     t = np.arange(T)[:, None] / fps
     dof = 0.3 * np.sin(2 * np.pi * 0.7 * t + np.arange(n)[None] * 0.37)
-    return make_test_clip(T, fps, root_vel=(0.8, 0.2, 0.0), yaw_rate=0.4, dof_pos=dof, loop=loop,
-                          sword_shield=sword_shield)
+    return make_test_clip(
+        T, fps, root_vel=(0.8, 0.2, 0.0), yaw_rate=0.4, dof_pos=dof, loop=loop, sword_shield=sword_shield
+    )
 
 
 def test_qvel_matches_mujoco_body_velocities():
@@ -203,6 +224,7 @@ def test_qvel_matches_mujoco_body_velocities():
 
 
 # ----------------------------------------------------------------------------- MotionLib
+
 
 @pytest.fixture(scope="module")
 def lib_and_clips():
@@ -244,9 +266,9 @@ def test_sample_at_frames_and_halfway(lib_and_clips):
         np.testing.assert_allclose(s.root_pos[j], (1 - a) * c.root_pos[f0] + a * c.root_pos[f0 + 1], atol=1e-5)
         np.testing.assert_allclose(s.dof_vel[j], (1 - a) * c.dof_vel[f0] + a * c.dof_vel[f0 + 1], atol=1e-4)
         for b in range(15):
-            ref = Slerp([0, 1], Rotation.from_quat(c.body_quat[f0:f0 + 2, b], scalar_first=True))(a)
+            ref = Slerp([0, 1], Rotation.from_quat(c.body_quat[f0 : f0 + 2, b], scalar_first=True))(a)
             assert abs(abs(np.dot(s.body_quat[j, b], ref.as_quat(scalar_first=True))) - 1) < 1e-6
-        ref = Slerp([0, 1], Rotation.from_quat(c.root_quat[f0:f0 + 2], scalar_first=True))(a)
+        ref = Slerp([0, 1], Rotation.from_quat(c.root_quat[f0 : f0 + 2], scalar_first=True))(a)
         assert abs(abs(np.dot(s.root_quat[j], ref.as_quat(scalar_first=True))) - 1) < 1e-6
 
 
@@ -287,9 +309,12 @@ def test_sample_speed_and_jit(lib_and_clips):
 def test_pose_only_windows_are_the_full_windows_coordinates(lib_and_clips):
     lib, _ = lib_and_clips
     with jax.disable_jit(False):
-        full, pose = jax.jit(lambda k: (sample_windows(lib, k, 16, 5, 1 / 30, (0.8, 1.2)),
-                                        sample_windows(lib, k, 16, 5, 1 / 30, (0.8, 1.2), pose_only=True)))(
-            jax.random.PRNGKey(4))
+        full, pose = jax.jit(
+            lambda k: (
+                sample_windows(lib, k, 16, 5, 1 / 30, (0.8, 1.2)),
+                sample_windows(lib, k, 16, 5, 1 / 30, (0.8, 1.2), pose_only=True),
+            )
+        )(jax.random.PRNGKey(4))
     np.testing.assert_array_equal(qpos_of(pose), qpos_of(full))
     np.testing.assert_array_equal(qpos_of(full), qpos_qvel(full)[0])
     assert pose.body_pos is None and pose.dof_vel is None
@@ -297,6 +322,7 @@ def test_pose_only_windows_are_the_full_windows_coordinates(lib_and_clips):
 
 def test_sample_times_and_windows(lib_and_clips):
     lib, clips = lib_and_clips
+
     def draw(lib, key):
         k0, k1 = jax.random.split(key)
         return sample_times(lib, k0, 256), sample_windows(lib, k1, 8, 5, 1 / 30, (0.5, 1.5))
@@ -323,6 +349,7 @@ def test_motionlib_rejects_mixed_characters():
 
 # ----------------------------------------------------------------------------- mirror
 
+
 def test_mirror_twice_is_identity_and_reflects_bodies():
     clip = _wavy_clip()
     m = mirror_clip(clip)
@@ -332,8 +359,7 @@ def test_mirror_twice_is_identity_and_reflects_bodies():
         np.testing.assert_allclose(getattr(mm, f), getattr(clip, f), atol=1e-10, err_msg=f)
     # Mirrored FK == mirror image of the original bodies, with left/right swapped.
     names = clip.character.body_names
-    swap = [names.index(n.replace("left_", "@").replace("right_", "left_").replace("@", "right_"))
-            for n in names]
+    swap = [names.index(n.replace("left_", "@").replace("right_", "left_").replace("@", "right_")) for n in names]
     np.testing.assert_allclose(m.body_pos, clip.body_pos[:, swap] * [1, -1, 1], atol=1e-10)
     with pytest.raises(ValueError, match="sword"):
         mirror_clip(make_test_clip(sword_shield=True))
@@ -344,29 +370,33 @@ def test_mirrored_walk_keeps_speed():
     clip = _load(_shared("deepmimic/humanoid3d_walk.txt"))
     m = mirror_clip(clip)
     assert mean_root_speed(m) == pytest.approx(mean_root_speed(clip), rel=1e-9)
-    np.testing.assert_allclose(m.body_pos[..., 1], -clip.body_pos[..., 1][:, [0, 1, 2, 6, 7, 8, 3, 4, 5,
-                                                                             12, 13, 14, 9, 10, 11]],
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        m.body_pos[..., 1], -clip.body_pos[..., 1][:, [0, 1, 2, 6, 7, 8, 3, 4, 5, 12, 13, 14, 9, 10, 11]], atol=1e-9
+    )
 
 
 # ----------------------------------------------------------------------------- joint ranges
+
 
 def test_range_wrap_and_branch_choice():
     lo, hi = np.deg2rad([-180.0]), np.deg2rad([45.0])
     a = np.deg2rad([179.0])  # == -181 deg: 1 deg outside instead of 134
     np.testing.assert_allclose(np.rad2deg(range_wrap(a, lo, hi)), [-181.0], atol=1e-9)
+
     # Two candidates per frame, range [-1, 1]; branch 0 always at 2.5 (1.5 outside). A short
     # excursion of branch 1 is not worth two jumps to branch 0: stay. A long, worse one is.
     def run(c1):
         c0 = np.full((len(c1), 1, 1, 1), 2.5)
         cands = np.concatenate([c0, np.reshape(c1, (-1, 1, 1, 1))], axis=2)
         return viterbi_branch(cands, np.array([[-1.0]]), np.array([[1.0]]))[:, 0]
+
     np.testing.assert_array_equal(run([0.0, 0.0, -2.0, 0.0, 0.0]), [1] * 5)
     np.testing.assert_array_equal(run([0.0] * 5 + [-3.0] * 8 + [0.0] * 5), [1] * 5 + [0] * 8 + [1] * 5)
     assert range_violation(np.array([2.0]), np.array([-1.0]), np.array([1.0]))[0] == 1.0
 
 
 # ----------------------------------------------------------------------------- groups
+
 
 def test_default_groups_and_indices():
     ch, ss = character(False), character(True)
@@ -400,6 +430,7 @@ def test_resolve_group_specs_and_errors():
 
 # ----------------------------------------------------------------------------- bad files
 
+
 def _composite_frames(n=3):
     ch = character(False)
     frames = []
@@ -420,11 +451,18 @@ def _poselib_dict(sword_shield: bool, T=4):
     rotq = np.zeros((T, ch.num_bodies, 4), np.float32)
     rotq[..., 3] = 1
     arr = lambda a: {"arr": a, "context": {"dtype": str(a.dtype)}}  # noqa: E731
-    return {"rotation": arr(rotq), "root_translation": arr(np.tile(np.float32([0, 0, 0.9]), (T, 1))),
-            "skeleton_tree": {"node_names": list(ch.body_names),
-                              "parent_indices": arr(np.array(ch.parents)),
-                              "local_translation": arr(ch.body_offsets.astype(np.float32))},
-            "is_local": True, "fps": 30, "__name__": "SkeletonMotion"}
+    return {
+        "rotation": arr(rotq),
+        "root_translation": arr(np.tile(np.float32([0, 0, 0.9]), (T, 1))),
+        "skeleton_tree": {
+            "node_names": list(ch.body_names),
+            "parent_indices": arr(np.array(ch.parents)),
+            "local_translation": arr(ch.body_offsets.astype(np.float32)),
+        },
+        "is_local": True,
+        "fps": 30,
+        "__name__": "SkeletonMotion",
+    }
 
 
 def test_good_small_files_load(tmp_path):
@@ -441,8 +479,7 @@ def test_deepmimic_yup_mapping_and_uneven_dt(tmp_path):
     # DeepMimic knee angle of -0.5 about z -> +0.5 about y. dt 0.1, 0.1, 0.2: resampled at 10 fps.
     ident = [1.0, 0.0, 0.0, 0.0]
     yaw = [np.cos(0.2), 0.0, np.sin(0.2), 0.0]
-    frame = ([1.0, 2.0, 3.0] + yaw + ident * 3 + [-0.5] + ident * 2 + [0.0] + ident + [0.0]
-             + ident * 2 + [0.0])
+    frame = [1.0, 2.0, 3.0] + yaw + ident * 3 + [-0.5] + ident * 2 + [0.0] + ident + [0.0] + ident * 2 + [0.0]
     frames = [[dt] + frame for dt in (0.1, 0.1, 0.2, 0.0)]
     frames[3][1] = 4.0  # x moves 1 -> 4 over the last 0.2 s
     clip = load_clip(_write_json(tmp_path / "m.txt", {"Loop": "none", "Frames": frames}))
@@ -457,8 +494,10 @@ def test_deepmimic_yup_mapping_and_uneven_dt(tmp_path):
     assert clip.fk_error_m < 1e-12
 
 
-@pytest.mark.parametrize("case", ["broken_json", "missing_body", "nan", "fps0", "no_fps",
-                                  "one_frame", "deepmimic_width", "npy17_as_15", "bad_ext"])
+@pytest.mark.parametrize(
+    "case",
+    ["broken_json", "missing_body", "nan", "fps0", "no_fps", "one_frame", "deepmimic_width", "npy17_as_15", "bad_ext"],
+)
 def test_bad_files_raise_motion_file_error(tmp_path, case):
     frames = _composite_frames()
     character_arg = None
@@ -466,7 +505,10 @@ def test_bad_files_raise_motion_file_error(tmp_path, case):
         p, expect = _write_json(tmp_path / "a.json", '{"fps": 30, "frames": [{"pelvis": '), "malformed JSON"
     elif case == "missing_body":
         del frames[1]["left_shin"]
-        p, expect = _write_json(tmp_path / "a.json", {"fps": 30, "frames": frames}), "missing body 'left_shin' in frame 1"
+        p, expect = (
+            _write_json(tmp_path / "a.json", {"fps": 30, "frames": frames}),
+            "missing body 'left_shin' in frame 1",
+        )
     elif case == "nan":
         frames[2]["torso"][0] = float("nan")
         p, expect = _write_json(tmp_path / "a.json", {"fps": 30, "frames": frames}), "'torso' at frame 2"
@@ -497,8 +539,14 @@ def test_cli_reports_bad_file_and_writes_json(tmp_path):
     (folder / "LICENSE.txt").write_text("not a motion")  # skipped by the folder scan
     out = tmp_path / "report.json"
     env = {**os.environ, "JAX_PLATFORMS": "cpu"}
-    r = subprocess.run([sys.executable, "-m", "jaxmotion.motion", str(folder), "--json", str(out)],
-                       capture_output=True, text=True, cwd=REPO, env=env, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "jaxmotion.motion", str(folder), "--json", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        env=env,
+        timeout=120,
+    )
     assert r.returncode != 0
     text = r.stdout + r.stderr
     assert "Traceback" not in text
@@ -508,16 +556,17 @@ def test_cli_reports_bad_file_and_writes_json(tmp_path):
     assert [c["path"] for c in report["clips"]] == [str(folder / "good.json")]
     row = report["clips"][0]
     assert row["frames"] == 4 and row["root_speed_mps"] == pytest.approx(0.3)
-    assert set(row) == {"path", "format", "frames", "fps", "duration_s",
-                                       "root_speed_mps", "fk_error_m"}
+    assert set(row) == {"path", "format", "frames", "fps", "duration_s", "root_speed_mps", "fk_error_m"}
     assert len(report["errors"]) == 1 and "malformed JSON" in report["errors"][0]["error"]
 
 
 # ----------------------------------------------------------------------------- frame ranges
 
+
 def test_frame_ranges_parse_and_join_without_a_jump(tmp_path):
     from jaxmotion.motion.clip import select_frames
     from jaxmotion.motion.loaders import load_clips, split_frame_ranges
+
     assert split_frame_ranges("a/squat.json[0:28, 56:]") == ("a/squat.json", ((0, 28), (56, None)))
     assert split_frame_ranges("C:/x[1].json") == ("C:/x[1].json", None)
     # A root walking at 1 m/s along x (30 fps): frames 0-4, then 20-29 carried on from frame 4.
@@ -533,7 +582,7 @@ def test_frame_ranges_parse_and_join_without_a_jump(tmp_path):
         select_frames(clip, ((3, 4),))
     # Through the loader, as an experiment names it; a bad range is a MotionFileError.
     path = _write_json(tmp_path / "walk.json", {"fps": 30, "frames": _composite_frames(6)})
-    c, = load_clips([f"{path}[1:4]"])
+    (c,) = load_clips([f"{path}[1:4]"])
     np.testing.assert_allclose(c.root_pos[:, 0], [0.01, 0.02, 0.03], atol=1e-6)
     with pytest.raises(MotionFileError, match="not within"):
         load_clips([f"{path}[0:9]"])

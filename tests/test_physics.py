@@ -115,6 +115,7 @@ def _squat_peak_speed(clip, cfg: sim.PhysicsConfig, frame: int, seed: int, sigma
     """Peak |qvel| over 1 s of PD control from a squat frame resting on the floor, each control
     step's target the frame's pose plus N(0, sigma) rad (an exploring policy), in MuJoCo C."""
     from jaxmotion.motion.level import _lowest_points
+
     ch = character(False)
     lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
     q = clip.qpos[frame].copy()
@@ -140,6 +141,7 @@ def test_contact_solver_converges_in_a_squat(data_dir):
     unconverged contacts throw the ankles past it (measured: 20 of 60 such runs, up to 355 rad/s)."""
     from jaxmotion.envs.humanoid import EnvConfig
     from jaxmotion.motion.loaders import load_clips
+
     clip = load_clips([data_dir / "compositemotion/gym/squat.json"], character(False))[0]
     limit = EnvConfig().max_qvel
     runs = [(f, s) for f in range(6, 40, 6) for s in range(2)]

@@ -25,10 +25,19 @@ def _learner(task: str) -> Learner:
     lib = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])
     # No fall termination: an untrained character that fell mid-test restarted with a new goal,
     # and the steering test could only skip (it did with the 16-iteration contact solver).
-    env_cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=4, policy_frames=2, early_termination=False,
-                        task=TaskConfig(name=task, heading=HeadingConfig(speed_range=(1.0, 1.5))))
-    cfg = TrainConfig(env=env_cfg, net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
-                      ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4), disc=DiscConfig(minibatch_size=4))
+    env_cfg = EnvConfig(
+        groups=(GroupConfig(name="full"),),
+        episode_steps=4,
+        policy_frames=2,
+        early_termination=False,
+        task=TaskConfig(name=task, heading=HeadingConfig(speed_range=(1.0, 1.5))),
+    )
+    cfg = TrainConfig(
+        env=env_cfg,
+        net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
+        ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4),
+        disc=DiscConfig(minibatch_size=4),
+    )
     return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
 
 
@@ -93,8 +102,9 @@ def test_heading_is_turned_and_its_speed_kept_in_range():
     _Env.character = character()
     task = make_task(TaskConfig(name="heading", heading=HeadingConfig(speed_range=(1.0, 1.5))), _Env())
     nb = len(_Env.character.body_names)
-    frame = LinkFrames(jnp.zeros((nb, 3)), jnp.tile(jnp.asarray([1.0, 0, 0, 0]), (nb, 1)), jnp.zeros((nb, 3)),
-                       jnp.zeros((nb, 3)))
+    frame = LinkFrames(
+        jnp.zeros((nb, 3)), jnp.tile(jnp.asarray([1.0, 0, 0, 0]), (nb, 1)), jnp.zeros((nb, 3)), jnp.zeros((nb, 3))
+    )
     goal = task.init(jax.random.PRNGKey(0), frame)
     d0 = np.asarray(goal.direction)
     steered = task.steer(goal, frame, jnp.asarray(10.0 * d0), jnp.asarray(math.pi / 2))
@@ -106,8 +116,14 @@ def test_heading_is_turned_and_its_speed_kept_in_range():
 def test_no_display_is_one_clear_line():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["JAX_PLATFORMS"] = "cpu"
-    r = subprocess.run([sys.executable, "-m", "jaxmotion.play", "runs/none/0"], env=env, cwd=REPO,
-                       capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "jaxmotion.play", "runs/none/0"],
+        env=env,
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 2
     assert "no display" in r.stderr and "--video" in r.stderr
     assert "Traceback" not in r.stderr
@@ -115,6 +131,7 @@ def test_no_display_is_one_clear_line():
 
 def test_runs_with_other_spaces_cannot_take_turns():
     from jaxmotion.training.runs import spaces_mismatch
+
     loc, head = _learner("location"), _learner("heading")
     assert spaces_mismatch([("a", loc), ("b", _learner("location"))]) is None
     msg = spaces_mismatch([("a", loc), ("b", head)])

@@ -14,10 +14,16 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 
 def _config(seed=0, multi_objective=True, popart=True):
-    return {"experiment": "toy", "config": {
-        "env": {"groups": [{"name": "upper"}, {"name": "lower"}]},
-        "ppo": {"multi_objective": multi_objective, "popart": popart, "num_envs": 16, "horizon": 8},
-        "seed": seed, "iterations": 10, "resume": ""}}
+    return {
+        "experiment": "toy",
+        "config": {
+            "env": {"groups": [{"name": "upper"}, {"name": "lower"}]},
+            "ppo": {"multi_objective": multi_objective, "popart": popart, "num_envs": 16, "horizon": 8},
+            "seed": seed,
+            "iterations": 10,
+            "resume": "",
+        },
+    }
 
 
 def _make_run(path, seed=0, n=12, offset=0.0, eval_keys=True, truncated_tail=False, **cfg):
@@ -26,13 +32,24 @@ def _make_run(path, seed=0, n=12, offset=0.0, eval_keys=True, truncated_tail=Fal
     rng = np.random.default_rng(seed)
     lines = []
     for i in range(1, n + 1):
-        row = {"iteration": i, "samples": 128 * i, "steps_per_s": 500.0 + rng.normal(),
-               "reward/upper": offset + 0.05 * i + 0.01 * rng.normal(), "reward/lower": 0.02 * i,
-               "return/0": 0.1 * i, "return/1": -0.1 * i,
-               "disc/upper/loss": 4.0 - 0.1 * i, "disc/lower/loss": 4.5 - 0.1 * i,
-               "ppo/policy_loss": 0.01, "ppo/value_loss": 1.0 / i,
-               "popart/mean/0": 0.1, "popart/mean/1": 0.2, "popart/std/0": 1.0, "popart/std/1": 1.1,
-               "env/terminated": 0.1}
+        row = {
+            "iteration": i,
+            "samples": 128 * i,
+            "steps_per_s": 500.0 + rng.normal(),
+            "reward/upper": offset + 0.05 * i + 0.01 * rng.normal(),
+            "reward/lower": 0.02 * i,
+            "return/0": 0.1 * i,
+            "return/1": -0.1 * i,
+            "disc/upper/loss": 4.0 - 0.1 * i,
+            "disc/lower/loss": 4.5 - 0.1 * i,
+            "ppo/policy_loss": 0.01,
+            "ppo/value_loss": 1.0 / i,
+            "popart/mean/0": 0.1,
+            "popart/mean/1": 0.2,
+            "popart/std/0": 1.0,
+            "popart/std/1": 1.1,
+            "env/terminated": 0.1,
+        }
         if eval_keys and i % 4 == 0:
             row["eval/upper/dtw_error_m"] = 0.3 - 0.01 * i
             row["eval/lower/dtw_error_m"] = 0.4 - 0.01 * i
@@ -58,8 +75,16 @@ def test_plot_run_writes_pngs(tmp_path):
     run = _make_run(tmp_path / "run")
     paths = P.plot_run(run)
     names = {p.name for p in paths}
-    for stem in ("returns", "disc_rewards", "disc_losses", "ppo_losses", "popart", "throughput",
-                 "imitation_error", "overview"):
+    for stem in (
+        "returns",
+        "disc_rewards",
+        "disc_losses",
+        "ppo_losses",
+        "popart",
+        "throughput",
+        "imitation_error",
+        "overview",
+    ):
         assert f"plot_{stem}.png" in names
     for p in paths:
         assert p.parent == run and p.stat().st_size > 1000 and p.read_bytes()[:8] == PNG
@@ -92,14 +117,28 @@ def test_overlay_groups_seeds(tmp_path):
     assert len(runs) == 6
     groups = dict(P.group_runs(runs))  # labelled by the config fields that differ
     assert {lab: len(rs) for lab, rs in groups.items()} == {
-        "multi_objective=True, popart=True": 3, "multi_objective=False, popart=True": 2,
-        "multi_objective=True, popart=False": 1}
+        "multi_objective=True, popart=True": 3,
+        "multi_objective=False, popart=True": 2,
+        "multi_objective=True, popart=False": 1,
+    }
     assert sorted(r.name for r in groups["multi_objective=True, popart=True"]) == ["mo_s0", "mo_s1", "mo_s2"]
     out, _ = P.plot_compare(runs, tmp_path / "cmp.png")
     assert out.read_bytes()[:8] == PNG and out.stat().st_size > 1000
     # The CLI: names for the curves, chosen metrics; a wrong number of labels is an error.
-    rc = P.main([str(tmp_path / "ablation"), "--out", str(tmp_path / "cli.png"),
-                 "--labels", "MO", "w/o PopArt", "w/o MO", "--keys", "reward/*", "eval/*/dtw_error_m"])
+    rc = P.main(
+        [
+            str(tmp_path / "ablation"),
+            "--out",
+            str(tmp_path / "cli.png"),
+            "--labels",
+            "MO",
+            "w/o PopArt",
+            "w/o MO",
+            "--keys",
+            "reward/*",
+            "eval/*/dtw_error_m",
+        ]
+    )
     assert rc == 0 and (tmp_path / "cli.png").stat().st_size > 1000
     assert P.main([str(tmp_path / "ablation"), "--out", str(tmp_path / "x.png"), "--labels", "a"]) == 2
     assert P.expand_keys(["reward/*", "nope"], [P.read_metrics(runs[0])]) == ["reward/lower", "reward/upper"]
@@ -135,13 +174,28 @@ def test_reach_compares_sample_efficiency(tmp_path, capsys):
         for row in rows:
             row["reward/upper"] = off + 0.05 * row["iteration"]
         (r / "metrics.jsonl").write_text("\n".join(json.dumps(row) for row in rows) + "\n")
-    out, reached = P.plot_compare(runs, tmp_path / "r.png", keys=["reward/upper"], smooth_window=1,
-                                  reach=["reward/upper>=0.4"])
+    out, reached = P.plot_compare(
+        runs, tmp_path / "r.png", keys=["reward/upper"], smooth_window=1, reach=["reward/upper>=0.4"]
+    )
     by = {r["curve"]: r for r in reached}
     slow, fast = by["multi_objective=True"], by["multi_objective=False"]
     assert slow["samples"] == pytest.approx(8 * 128) and fast["samples"] == pytest.approx(2 * 128)
     first, other = (slow, fast) if reached[0]["curve"] == slow["curve"] else (fast, slow)
     assert first["ratio"] == 1.0 and other["ratio"] == pytest.approx(other["samples"] / first["samples"])
-    assert P.main([str(tmp_path / "cmp"), "--out", str(tmp_path / "c.png"), "--keys", "reward/upper",
-                   "--smooth", "1", "--reach", "reward/upper>=0.4"]) == 0
+    assert (
+        P.main(
+            [
+                str(tmp_path / "cmp"),
+                "--out",
+                str(tmp_path / "c.png"),
+                "--keys",
+                "reward/upper",
+                "--smooth",
+                "1",
+                "--reach",
+                "reward/upper>=0.4",
+            ]
+        )
+        == 0
+    )
     assert "reaches 0.4" in capsys.readouterr().out

@@ -21,8 +21,10 @@ W, H_PX = 120, 90
 def gl():
     b = RD.gl_backend()
     if b is None:
-        pytest.skip("no headless OpenGL backend works (neither MUJOCO_GL=egl nor osmesa); "
-                    "install libegl1 libegl-mesa0 libgl1-mesa-dri or libosmesa6")
+        pytest.skip(
+            "no headless OpenGL backend works (neither MUJOCO_GL=egl nor osmesa); "
+            "install libegl1 libegl-mesa0 libgl1-mesa-dri or libosmesa6"
+        )
     return b
 
 
@@ -41,6 +43,7 @@ def _colors():
 
 def test_scene_has_a_collision_free_ghost():
     import mujoco
+
     ch = character()
     m = mujoco.MjModel.from_xml_string(RD.scene_mjcf(False, ghost=True))
     assert m.nq == 2 * (7 + ch.num_dof) and m.nbody == 1 + 2 * ch.num_bodies
@@ -118,7 +121,7 @@ def test_acting_sphere_only_with_several_policies():
     mk = RD.acting_markers(head, acting, 3)
     assert set(mk) == {"acting0", "acting1", "acting2"}
     for t in range(3):
-        (seg, rgba, radius), = RD.marker_list({k: v[t] for k, v in mk.items()})
+        ((seg, rgba, radius),) = RD.marker_list({k: v[t] for k, v in mk.items()})
         np.testing.assert_allclose(seg, [head[t] + [0, 0, RD.ACTING_HEIGHT_M]] * 2)
         assert rgba == RD.policy_rgba(acting[t]) and radius == RD.ACTING_RADIUS
     assert len({RD.policy_rgba(i) for i in range(len(RD.POLICY_COLORS))}) == len(RD.POLICY_COLORS)
@@ -133,8 +136,9 @@ def test_acting_sphere_is_drawn_over_the_head(gl):
     head = q[:, :3] + [0.0, 0.0, 0.5]  # roughly the head of the upright test pose
     size = (2 * W, 2 * H_PX)
     plain = next(RD.iter_frames(q, None, _colors(), *size, progress=False)).astype(int)
-    drawn = next(RD.iter_frames(q, None, _colors(), *size, progress=False,
-                                markers=RD.acting_markers(head, np.array([1]), 2))).astype(int)
+    drawn = next(
+        RD.iter_frames(q, None, _colors(), *size, progress=False, markers=RD.acting_markers(head, np.array([1]), 2))
+    ).astype(int)
     changed = np.abs(drawn - plain).sum(-1) > 30
     r, g, b = (drawn[..., i] for i in range(3))
     magenta = changed & (r - g > 80) & (b - g > 80)
@@ -160,6 +164,7 @@ def test_write_video_mp4_and_gif(tmp_path):
     gif = RD.write_video(frames, tmp_path / "v.gif", fps=10)
     assert gif.read_bytes()[:6] in (b"GIF89a", b"GIF87a")
     from PIL import Image
+
     with Image.open(gif) as im:
         assert im.n_frames == 4
 
@@ -170,10 +175,18 @@ def _page(tmp_path, with_ref=True):
     c, _ = _clip_qpos(12)
     r, _ = _clip_qpos(12, sign=-1.0, root_vel=(0.8, 0.2, 0.0))
     cols = _colors()
-    return H.write_html(tmp_path / "replay.html", ch.body_names, ch.parents, c.body_pos, c.body_quat,
-                        r.body_pos if with_ref else None, r.body_quat if with_ref else None, 10.0,
-                        H.character_geoms(False, cols),
-                        legend={"upper": RD.GROUP_PALETTE[0], "lower": RD.GROUP_PALETTE[1]})
+    return H.write_html(
+        tmp_path / "replay.html",
+        ch.body_names,
+        ch.parents,
+        c.body_pos,
+        c.body_quat,
+        r.body_pos if with_ref else None,
+        r.body_quat if with_ref else None,
+        10.0,
+        H.character_geoms(False, cols),
+        legend={"upper": RD.GROUP_PALETTE[0], "lower": RD.GROUP_PALETTE[1]},
+    )
 
 
 def test_character_geoms_match_the_model():
@@ -203,14 +216,24 @@ def test_write_html_is_self_contained(tmp_path):
     with pytest.raises(ValueError, match="frames"):
         ch = character()
         c, _ = _clip_qpos(4)
-        H.write_html(tmp_path / "bad.html", ch.body_names, ch.parents, c.body_pos, c.body_quat,
-                     c.body_pos[:2], c.body_quat[:2], 10.0, [])
+        H.write_html(
+            tmp_path / "bad.html",
+            ch.body_names,
+            ch.parents,
+            c.body_pos,
+            c.body_quat,
+            c.body_pos[:2],
+            c.body_quat[:2],
+            10.0,
+            [],
+        )
 
 
 def test_write_html_carries_markers_and_acting_labels(tmp_path):
     """Markers and the acting policy go into the page's data as given; bad ones are refused."""
     import base64
     import json
+
     ch = character()
     c, _ = _clip_qpos(4)
     seg = np.zeros((4, 2, 3), np.float32)
@@ -222,7 +245,7 @@ def test_write_html_carries_markers_and_acting_labels(tmp_path):
     p = H.write_html(tmp_path / "m.html", *args, markers=marks, acting=np.array([0, 0, 1, 1]), policies=pols)
     text = p.read_text()
     start = text.index('id="replay-data">') + len('id="replay-data">')
-    data = json.loads(text[start:text.index("</script>", start)])
+    data = json.loads(text[start : text.index("</script>", start)])
     (m,) = data["markers"]
     assert m["name"] == "aim" and m["rgba"] == list(RD.MARKER_RGBA["aim"]) and m["radius"] == 0.08
     np.testing.assert_array_equal(np.frombuffer(base64.b64decode(m["seg"]), "<f4").reshape(4, 2, 3), seg)
@@ -244,11 +267,11 @@ def chromium():
 
 def test_html_replay_renders_in_headless_chromium(tmp_path, chromium):
     p = _page(tmp_path)
-    res = B.check_in_browser(p, tmp_path / "shot.png", width=640, height=480, frame=6,
-                             chromium=chromium)
+    res = B.check_in_browser(p, tmp_path / "shot.png", width=640, height=480, frame=6, chromium=chromium)
     assert res["ready"], f"page did not start: {res}"
     assert res["errors"] == [], res["errors"]
     from PIL import Image
+
     img = np.asarray(Image.open(res["png"]).convert("RGB")).astype(int)
     assert img.shape == (480, 640, 3)
     centre = img[120:360, 200:440]
@@ -265,6 +288,7 @@ def test_html_replay_renders_in_headless_chromium(tmp_path, chromium):
 
 def test_ghost_alignment_matches_eval_world_aligned():
     from jaxmotion.envs.reference import world_aligned
+
     ref, _ = _clip_qpos(6, root_vel=(0.7, 0.2, 0.0))
     sim, _ = _clip_qpos(6, sign=-1.0)
     yaw = -0.6

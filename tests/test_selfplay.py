@@ -72,18 +72,39 @@ class Duel:
         new = DuelState(x=x, steps=steps)
         out_state = jax.tree.map(lambda a, b: jnp.where(done, a, b), reset[0], new)
         false = jnp.zeros((2,), bool)
-        return out_state, StepOut(obs=jnp.where(done, reset[1], x[:, None]), final_obs=x[:, None], disc_obs=(),
-                                  terminated=false, truncated=jnp.broadcast_to(done, (2,)), unstable=false,
-                                  task_reward=reward, info={})
+        return out_state, StepOut(
+            obs=jnp.where(done, reset[1], x[:, None]),
+            final_obs=x[:, None],
+            disc_obs=(),
+            terminated=false,
+            truncated=jnp.broadcast_to(done, (2,)),
+            unstable=false,
+            task_reward=reward,
+            info={},
+        )
 
 
 def _learner(player_policies: str = "separate", **ppo) -> Learner:
     env_cfg = EnvConfig(groups=(), players=2)
-    ppo = dict(dict(num_envs=16, horizon=8, minibatch_size=64, epochs=4, actor_lr=3e-3, critic_lr=3e-3,
-                    terminate_reward=None, absorbing_termination=False), **ppo)
-    cfg = TrainConfig(env=env_cfg, net=NetConfig(policy_hidden=(16,), critic_hidden=(16,), init_log_std=-1.0,
-                                                 state_dependent_std=False),
-                      ppo=PPOConfig(**ppo), player_policies=player_policies)
+    ppo = dict(
+        dict(
+            num_envs=16,
+            horizon=8,
+            minibatch_size=64,
+            epochs=4,
+            actor_lr=3e-3,
+            critic_lr=3e-3,
+            terminate_reward=None,
+            absorbing_termination=False,
+        ),
+        **ppo,
+    )
+    cfg = TrainConfig(
+        env=env_cfg,
+        net=NetConfig(policy_hidden=(16,), critic_hidden=(16,), init_log_std=-1.0, state_dependent_std=False),
+        ppo=PPOConfig(**ppo),
+        player_policies=player_policies,
+    )
     return Learner(cfg, env=Duel(env_cfg))
 
 
@@ -138,6 +159,7 @@ def test_observation_statistics_are_per_player():
 def test_separate_policies_reach_targets_a_shared_policy_cannot():
     """Same seeds, same budget: separate policies send each player to its own target; the shared
     policy, which cannot tell the players apart, at best stays between them (reward about -0.25)."""
+
     def final_reward(player_policies):
         learner = _learner(player_policies)
         with jit_enabled():
@@ -157,6 +179,7 @@ def test_separate_policies_reach_targets_a_shared_policy_cannot():
 def test_separate_policies_need_two_players():
     from jaxmotion.envs.humanoid import GroupConfig, HumanoidEnv
     from jaxmotion.motion import MotionLib, make_test_clip
+
     lib = MotionLib.from_clips([make_test_clip(num_frames=10)])
     cfg = TrainConfig(env=EnvConfig(groups=(GroupConfig(name="full"),)), player_policies="separate")
     with pytest.raises(ValueError, match="two-player scene"):
@@ -167,6 +190,7 @@ def test_separate_policies_need_two_players():
 
 
 # ---- the opponent pool (``pool.py``) ---------------------------------------------------------
+
 
 def _pool_learner(**kw) -> Learner:
     learner = _learner("shared")
@@ -180,15 +204,17 @@ def test_pool_bouts_have_player_1_acted_by_their_pool_member():
     assert pool.bouts == 4  # a quarter of 16 bouts
     ts = learner.init(jax.random.PRNGKey(0))
     other = learner.policy.init(jax.random.PRNGKey(7))  # member 1: another policy than member 0
-    ps = ts.pool.replace(policy_params=jax.tree.map(lambda s, x: s.at[1].set(x), ts.pool.policy_params, other),
-                         opponent=jnp.array([0, 1, 1, 0], jnp.int32))
+    ps = ts.pool.replace(
+        policy_params=jax.tree.map(lambda s, x: s.at[1].set(x), ts.pool.policy_params, other),
+        opponent=jnp.array([0, 1, 1, 0], jnp.int32),
+    )
     obs = jnp.tile(jnp.linspace(-0.5, 0.5, 16)[:, None, None], (1, 2, 1))
     a, _, _ = learner.act(ts, obs, None)
     mixed = pool.act(learner._act, ps, None, obs, a, None)
     member = [jax.tree.map(lambda x: x[k], (ps.policy_params, ps.obs_norm)) for k in range(2)]
     for b, k in enumerate([0, 1, 1, 0]):
         sub = ts.replace(policy_params=member[k][0], obs_norm=member[k][1])
-        want, _, _ = learner._act(sub, obs[b:b + 1, 1], None)
+        want, _, _ = learner._act(sub, obs[b : b + 1, 1], None)
         np.testing.assert_allclose(mixed[b, 1], want[0], rtol=1e-6, atol=1e-6)
     np.testing.assert_array_equal(mixed[:, 0], a[:, 0])  # the learner's side and the other bouts: the learner
     np.testing.assert_array_equal(mixed[4:], a[4:])
@@ -206,7 +232,9 @@ def test_pool_transitions_are_left_out_of_the_update():
     np.testing.assert_array_equal(learner.pool.learner_samples(ids)[0], [0, 2, 4, 6] + list(range(8, 32)))
     # Changing what the pool's players did changes nothing the learner trains on.
     garbage = traj.replace(task_reward=traj.task_reward.at[:, 1:8:2].set(1e6), action=traj.action.at[:, 1:8:2].set(9.0))
-    for a, b in zip(jax.tree.leaves(learner.pool.learner_samples(traj)), jax.tree.leaves(learner.pool.learner_samples(garbage))):
+    for a, b in zip(
+        jax.tree.leaves(learner.pool.learner_samples(traj)), jax.tree.leaves(learner.pool.learner_samples(garbage))
+    ):
         np.testing.assert_array_equal(a, b)
     ts2, m = learner.iteration(learner.init(jax.random.PRNGKey(0)))
     assert all(np.all(np.isfinite(np.asarray(v))) for v in jax.tree.leaves(m))
@@ -232,8 +260,10 @@ def test_pool_snapshots_fill_a_ring_and_members_are_drawn_among_them():
     drawn = pool.redraw(one, jnp.ones((16,), bool), jax.random.PRNGKey(1))
     np.testing.assert_array_equal(drawn.opponent, 0)
     two = ps.replace(opponent=jnp.array([1, 1, 1, 1], jnp.int32))
-    draws = [pool.redraw(two, jnp.array([True, False, True, False] + [False] * 12), jax.random.PRNGKey(k)).opponent
-             for k in range(20)]
+    draws = [
+        pool.redraw(two, jnp.array([True, False, True, False] + [False] * 12), jax.random.PRNGKey(k)).opponent
+        for k in range(20)
+    ]
     draws = np.stack(draws)
     np.testing.assert_array_equal(draws[:, [1, 3]], 1)  # bouts that go on keep their member
     assert set(draws[:, [0, 2]].ravel()) == {0, 1}
@@ -241,7 +271,9 @@ def test_pool_snapshots_fill_a_ring_and_members_are_drawn_among_them():
 
 def test_pool_settings_are_checked():
     with pytest.raises(ValueError, match="player_policies=shared"):
-        Learner(dataclasses.replace(_learner("separate").cfg, opponent_pool=2), env=Duel(EnvConfig(groups=(), players=2)))
+        Learner(
+            dataclasses.replace(_learner("separate").cfg, opponent_pool=2), env=Duel(EnvConfig(groups=(), players=2))
+        )
     with pytest.raises(ValueError, match="pool bouts"):
         _pool_learner(opponent_share=1.0)
     with pytest.raises(ValueError, match="opponent_every"):

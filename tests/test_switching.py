@@ -20,11 +20,15 @@ from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig
 
 def _learner() -> Learner:
     lib = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(1.0, 0.0, 0.0), root_height=0.87)])
-    env_cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=20, policy_frames=2,
-                        task=TaskConfig(name="location"))
-    cfg = TrainConfig(env=env_cfg, net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,),
-                                                 disc_heads=2, init_log_std=0.0),
-                      ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4), disc=DiscConfig(minibatch_size=4))
+    env_cfg = EnvConfig(
+        groups=(GroupConfig(name="full"),), episode_steps=20, policy_frames=2, task=TaskConfig(name="location")
+    )
+    cfg = TrainConfig(
+        env=env_cfg,
+        net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2, init_log_std=0.0),
+        ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4),
+        disc=DiscConfig(minibatch_size=4),
+    )
     return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
 
 
@@ -36,6 +40,7 @@ def switched():
     """A switched rollout (A acts for 2 steps, then B for 2, then A again) and the same by hand
     on one env batch: ``(learner, ro, qpos, acts, other)``; one compilation serves every test."""
     from conftest import jit_enabled
+
     learner = _learner()
     with jit_enabled():
         a, b = (learner.init(jax.random.PRNGKey(s)) for s in (0, 1))
@@ -85,6 +90,7 @@ def test_switched_markers_and_html_show_who_acts(switched, tmp_path):
     per frame. Read back from the written file (no browser)."""
     from jaxmotion.viz import render as RD
     from jaxmotion.viz.replay_html import write_rollout_html
+
     learner, ro, *_ = switched
     n = int(ro["alive"][:, 0].sum())
     single = RD.rollout_markers(learner, ro, 0, n)
@@ -102,8 +108,10 @@ def test_switched_markers_and_html_show_who_acts(switched, tmp_path):
 
     data = _page_data(write_rollout_html(learner, ro, tmp_path / "s.html", policies=("runs/a", "runs/b")))
     assert data["T"] == n and data["acting"] == ro["acting"][:n, 0].tolist()
-    assert data["policies"] == [{"name": "runs/a", "rgba": list(RD.policy_rgba(0))},
-                                {"name": "runs/b", "rgba": list(RD.policy_rgba(1))}]
+    assert data["policies"] == [
+        {"name": "runs/a", "rgba": list(RD.policy_rgba(0))},
+        {"name": "runs/b", "rgba": list(RD.policy_rgba(1))},
+    ]
     marks = {m["name"]: m for m in data["markers"]}
     assert set(marks) == {"target", "acting0", "acting1"}
     np.testing.assert_allclose(_f32(marks["target"]["seg"]).reshape(n, 2, 3), ro["markers"]["target"][:n, 0])
@@ -118,7 +126,7 @@ def _page_data(path) -> dict:
     """The JSON payload of a replay page."""
     text = path.read_text()
     start = text.index('id="replay-data">') + len('id="replay-data">')
-    return json.loads(text[start:text.index("</script>", start)])
+    return json.loads(text[start : text.index("</script>", start)])
 
 
 def _f32(b64: str) -> np.ndarray:

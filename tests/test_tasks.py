@@ -29,6 +29,7 @@ class _Env:
 
     def __init__(self):
         from jaxmotion.physics.character import character
+
         self.character = character()
 
 
@@ -46,8 +47,12 @@ def _task(name, **kw):
 
 
 def _loc_goal(target, timer=90, dist0=3.0):
-    return LocationGoal(target=jnp.asarray(target, jnp.float32), timer=jnp.asarray(timer),
-                        dist0=jnp.asarray(dist0, jnp.float32), reached=jnp.zeros((), bool))
+    return LocationGoal(
+        target=jnp.asarray(target, jnp.float32),
+        timer=jnp.asarray(timer),
+        dist0=jnp.asarray(dist0, jnp.float32),
+        reached=jnp.zeros((), bool),
+    )
 
 
 # ---- target location --------------------------------------------------------------------
@@ -114,8 +119,7 @@ def test_location_goals_within_sixty_degrees_without_sharp_turns():
 # ---- heading ----------------------------------------------------------------------------
 def test_heading_features_and_reward_by_hand():
     task = _task("heading")
-    g = HeadingGoal(direction=jnp.array([0.0, 1.0]), speed=jnp.asarray(1.2), timer=jnp.asarray(50),
-                    age=jnp.asarray(40))
+    g = HeadingGoal(direction=jnp.array([0.0, 1.0]), speed=jnp.asarray(1.2), timer=jnp.asarray(50), age=jnp.asarray(40))
     np.testing.assert_allclose(task.observe(g, _frame()), [0.0, 1.0, 1.2], atol=1e-6)
     np.testing.assert_allclose(task.observe(g, _frame(yaw=math.pi / 2)), [1.0, 0.0, 1.2], atol=1e-6)
     on = task.step(g, _frame(), _frame((0.0, 1.2 * DT)), jax.random.PRNGKey(0))
@@ -153,7 +157,11 @@ def test_aim_features_zeroed_inside_radius_and_new_aim_with_new_goal():
     g = task.init(jax.random.PRNGKey(0), _frame())
     # Yaw 30 degrees left of the root-to-target direction, level.
     d = np.asarray(g.loc.target) / np.linalg.norm(np.asarray(g.loc.target))
-    want = [math.cos(math.atan2(d[1], d[0]) + math.radians(30)), math.sin(math.atan2(d[1], d[0]) + math.radians(30)), 0.0]
+    want = [
+        math.cos(math.atan2(d[1], d[0]) + math.radians(30)),
+        math.sin(math.atan2(d[1], d[0]) + math.radians(30)),
+        0.0,
+    ]
     np.testing.assert_allclose(g.aim, want, atol=1e-5)
     assert np.linalg.norm(np.asarray(g.loc.target)) > 0.5
     np.testing.assert_allclose(np.asarray(task.observe(g, _frame()))[4:], want, atol=1e-5)  # heading = world here
@@ -178,28 +186,36 @@ def test_combine_weights_authors_rule():
 # ---- every registered task in the scene -------------------------------------------------
 def _scene(task: str) -> HumanoidEnv:
     lib = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(1.0, 0.0, 0.0), root_height=0.87)])
-    cfg = EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")), episode_steps=2,
-                    policy_frames=2, task=TaskConfig(name=task))
+    cfg = EnvConfig(
+        groups=(GroupConfig(name="upper"), GroupConfig(name="lower")),
+        episode_steps=2,
+        policy_frames=2,
+        task=TaskConfig(name=task),
+    )
     return HumanoidEnv(cfg, motion_libs=(lib, lib), init_lib=lib)
 
 
 # track: tests/test_track.py; tennis (needs its racket and ball): tests/test_tennis.py; the
 # two-player tasks (boxing, fencing): tests/test_bout.py
-@pytest.mark.parametrize("name", sorted(n for n in TASKS if n not in ("track", "tennis")
-                                        and not getattr(TASKS[n], "two_player", False)))
+@pytest.mark.parametrize(
+    "name", sorted(n for n in TASKS if n not in ("track", "tennis") and not getattr(TASKS[n], "two_player", False))
+)
 def test_every_task_quick_check(name):
     """Jitted and vmapped init/observe/step on moving frames: shapes, no NaN, rewards >= floor."""
     # Short goal timers, so every goal runs out and is redrawn within the loop.
-    task = make_task(TaskConfig(name=name, location=LocationConfig(timer_range=(4, 8)),
-                                heading=HeadingConfig(timer_range=(4, 8))), _Env())
+    task = make_task(
+        TaskConfig(name=name, location=LocationConfig(timer_range=(4, 8)), heading=HeadingConfig(timer_range=(4, 8))),
+        _Env(),
+    )
     frames = jax.vmap(lambda x, y: _frame())(jnp.zeros(3), jnp.zeros(3))
     goal = jax.jit(jax.vmap(task.init))(jax.random.split(jax.random.PRNGKey(0), 3), frames)
     observe, step = jax.jit(jax.vmap(task.observe)), jax.jit(jax.vmap(task.step))
     rng = jax.random.PRNGKey(1)
     for t in range(12):
         rng, k, k_move = jax.random.split(rng, 3)
-        moved = frames.replace(pos=frames.pos + jnp.concatenate(
-            [0.04 * jax.random.normal(k_move, (3, 1, 2)), jnp.zeros((3, 1, 1))], -1))
+        moved = frames.replace(
+            pos=frames.pos + jnp.concatenate([0.04 * jax.random.normal(k_move, (3, 1, 2)), jnp.zeros((3, 1, 1))], -1)
+        )
         out = step(goal, frames, moved, jax.random.split(k, 3))
         frames, goal = moved, out.goal
         g = observe(goal, frames)
@@ -216,14 +232,19 @@ def test_every_task_quick_check(name):
 @pytest.fixture(scope="module")
 def scene():
     lib = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(1.0, 0.0, 0.0), root_height=0.87)])
-    cfg = EnvConfig(groups=(GroupConfig(name="upper"), GroupConfig(name="lower")), episode_steps=2,
-                    policy_frames=2, task=TaskConfig(name="aim+location"))
+    cfg = EnvConfig(
+        groups=(GroupConfig(name="upper"), GroupConfig(name="lower")),
+        episode_steps=2,
+        policy_frames=2,
+        task=TaskConfig(name="aim+location"),
+    )
     return HumanoidEnv(cfg, motion_libs=(lib, lib), init_lib=lib)
 
 
 def test_task_in_the_scene(scene):
     """The env carries the goal, appends its features, reports its rewards, redraws it on reset."""
     from conftest import jit_enabled
+
     env, task = scene, scene.task
     with jit_enabled():
         state, obs = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 2))
@@ -236,8 +257,11 @@ def test_task_in_the_scene(scene):
             assert out.obs.shape == obs.shape and out.task_reward.shape == (2, len(task.reward_names))
             assert bool(jnp.isfinite(out.obs).all()) and bool(jnp.isfinite(out.task_reward).all())
             if t == 0:  # no reset yet: the observation ends with the goal features of the state
-                np.testing.assert_allclose(out.obs[:, env.body_obs_size:], jax.vmap(task.observe)(
-                    state.goal, jax.tree.map(lambda x: x[:, -1], state.hist)), atol=1e-5)
+                np.testing.assert_allclose(
+                    out.obs[:, env.body_obs_size :],
+                    jax.vmap(task.observe)(state.goal, jax.tree.map(lambda x: x[:, -1], state.hist)),
+                    atol=1e-5,
+                )
     np.testing.assert_array_equal(goals[1], goals[0])  # kept while the timer runs
     assert not np.allclose(goals[2], goals[1])  # the reset after step 2 drew new goals
     # What the video draws: the target on the floor and the aim as an arrow from the right hand.
@@ -252,8 +276,12 @@ def test_task_in_the_scene(scene):
 
 def test_learner_makes_one_objective_per_task_reward(scene):
     env = scene
-    cfg = TrainConfig(env=env.cfg, net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
-                      ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4), disc=DiscConfig(minibatch_size=4))
+    cfg = TrainConfig(
+        env=env.cfg,
+        net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
+        ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4),
+        disc=DiscConfig(minibatch_size=4),
+    )
     learner = Learner(cfg, env=env)
     assert learner.objective_names == ("upper", "lower", "location", "aim")
     assert learner.num_objectives == 4
@@ -261,10 +289,11 @@ def test_learner_makes_one_objective_per_task_reward(scene):
     assert v.shape == (1, 4)
     # Goal features reach the networks raw; the body state is normalised and clipped.
     from jaxmotion.algos import normalizer as N
+
     obs = jnp.ones((1, env.obs_size)) * 7.0
     nobs = learner.normalize_obs(N.normalizer_init(env.body_obs_size), obs)
-    np.testing.assert_allclose(nobs[0, env.body_obs_size:], 7.0)
-    assert float(jnp.max(jnp.abs(nobs[0, :env.body_obs_size]))) <= cfg.ppo.obs_clip
+    np.testing.assert_allclose(nobs[0, env.body_obs_size :], 7.0)
+    assert float(jnp.max(jnp.abs(nobs[0, : env.body_obs_size]))) <= cfg.ppo.obs_clip
     with pytest.raises(ValueError, match="location, aim"):
         Learner(dataclasses.replace(cfg, ppo=dataclasses.replace(cfg.ppo, objective_weights=(1.0, 1.0))), env=env)
 
@@ -288,16 +317,37 @@ def test_short_location_training_beats_untrained_policies():
     stand = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87)])
     # Targets 1-2 m away, ahead within ±60 degrees; no fall termination, so getting closer (by a
     # step, a lean or a fall) is what the reward pays for. The discriminator's weight is small.
-    loc = LocationConfig(v0_mean=0.5, v0_std=0.01, v0_range=(0.4, 0.6), timer_range=(60, 61),
-                         sharp_turns=False, max_overshoot=0.0, weight=0.9)
-    env_cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=45, policy_frames=2,
-                        early_termination=False, task=TaskConfig(name="location", location=loc))
+    loc = LocationConfig(
+        v0_mean=0.5,
+        v0_std=0.01,
+        v0_range=(0.4, 0.6),
+        timer_range=(60, 61),
+        sharp_turns=False,
+        max_overshoot=0.0,
+        weight=0.9,
+    )
+    env_cfg = EnvConfig(
+        groups=(GroupConfig(name="full"),),
+        episode_steps=45,
+        policy_frames=2,
+        early_termination=False,
+        task=TaskConfig(name="location", location=loc),
+    )
     cfg = TrainConfig(
         env=env_cfg,
-        net=NetConfig(policy_hidden=(64, 64), critic_hidden=(64, 64), disc_hidden=(64, 32), disc_heads=4,
-                      init_log_std=-1.7, state_dependent_std=False),
+        net=NetConfig(
+            policy_hidden=(64, 64),
+            critic_hidden=(64, 64),
+            disc_hidden=(64, 32),
+            disc_heads=4,
+            init_log_std=-1.7,
+            state_dependent_std=False,
+        ),
         ppo=PPOConfig(num_envs=32, horizon=8, minibatch_size=64, epochs=4, actor_lr=2e-4, critic_lr=1e-3),
-        disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk)
+        disc=DiscConfig(lr=1e-4, minibatch_size=64),
+        iterations=iters,
+        chunk=chunk,
+    )
 
     def final_distance(learner, ts):
         ro = rollout(learner, ts, episodes=episodes, steps=env_cfg.episode_steps - 1)

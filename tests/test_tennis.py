@@ -21,12 +21,15 @@ from jaxmotion.tasks.tennis import G, hit_reward, landing_point
 
 
 def _env(backend="mujoco", **tennis) -> HumanoidEnv:
-    lib = MotionLib.from_clips([make_test_clip(20, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.9,
-                                               sword_shield=True)])
-    cfg = EnvConfig(physics=PhysicsConfig(sword_shield=True, racket=True, props=(PropConfig(),), backend=backend,
-                                          sim_hz=240.0),
-                    groups=(GroupConfig(name="upper"), GroupConfig(name="lower")), episode_steps=200,
-                    policy_frames=2, early_termination=False, task=TaskConfig(name="tennis", tennis=TennisConfig(**tennis)))
+    lib = MotionLib.from_clips([make_test_clip(20, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.9, sword_shield=True)])
+    cfg = EnvConfig(
+        physics=PhysicsConfig(sword_shield=True, racket=True, props=(PropConfig(),), backend=backend, sim_hz=240.0),
+        groups=(GroupConfig(name="upper"), GroupConfig(name="lower")),
+        episode_steps=200,
+        policy_frames=2,
+        early_termination=False,
+        task=TaskConfig(name="tennis", tennis=TennisConfig(**tennis)),
+    )
     return HumanoidEnv(cfg, motion_libs=(lib, lib), init_lib=lib)
 
 
@@ -58,8 +61,9 @@ def test_racket_needs_the_sword_character_and_tennis_a_ball():
     cfg = EnvConfig(physics=PhysicsConfig(sword_shield=True, racket=True, sim_hz=240.0), task=TaskConfig(name="tennis"))
     with pytest.raises(ValueError, match="one ball"):
         HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
-    cfg = EnvConfig(physics=PhysicsConfig(sword_shield=True, racket=True, props=(PropConfig(),)),
-                    task=TaskConfig(name="tennis"))
+    cfg = EnvConfig(
+        physics=PhysicsConfig(sword_shield=True, racket=True, props=(PropConfig(),)), task=TaskConfig(name="tennis")
+    )
     with pytest.raises(ValueError, match="passes through the racket"):
         HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
 
@@ -70,8 +74,9 @@ def _hold(env):
 
 
 def _with_ball(env, state, pos, vel):
-    goal = state.goal.replace(ball_pos=jnp.asarray(pos, jnp.float32), ball_vel=jnp.asarray(vel, jnp.float32),
-                              feed=jnp.ones((), bool))
+    goal = state.goal.replace(
+        ball_pos=jnp.asarray(pos, jnp.float32), ball_vel=jnp.asarray(vel, jnp.float32), feed=jnp.ones((), bool)
+    )
     return state.replace(data=env.place_props(state.data, goal), goal=goal.replace(feed=jnp.zeros((), bool)))
 
 
@@ -87,8 +92,10 @@ def test_ball_bounces_off_the_racket_and_scores_a_hit(backend):
         forces, vz, rewards, hits = [], [], [], []
         for _ in range(4):
             state, out = step(state, _hold(env))
-            forces.append(float(state.goal.force)); vz.append(float(state.goal.ball_vel[2]))
-            rewards.append(float(out.task_reward[0])); hits.append(bool(state.goal.hit))
+            forces.append(float(state.goal.force))
+            vz.append(float(state.goal.ball_vel[2]))
+            rewards.append(float(out.task_reward[0]))
+            hits.append(bool(state.goal.hit))
     assert forces[0] > env.cfg.task.tennis.touch_force, forces  # struck within the first control step
     assert max(vz) > 1.0, vz  # it flies back up
     assert hits[0] and sum(r > 0 for r in rewards) == 1, (hits, rewards)  # one hit, paid once

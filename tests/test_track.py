@@ -26,10 +26,18 @@ def _moving_clip(frames=30):
 
 def _env(goal="rotation", termination="max", distance=0.25, clip=None, residual=False):
     lib = MotionLib.from_clips([_moving_clip() if clip is None else clip])
-    task = TaskConfig(name="track", track=TrackConfig(goal=goal, termination=termination, termination_distance=distance,
-                                                      residual=residual))
-    cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=100, policy_frames=1, task=task,
-                    init_within_limits=False, init_above_ground=False)
+    task = TaskConfig(
+        name="track",
+        track=TrackConfig(goal=goal, termination=termination, termination_distance=distance, residual=residual),
+    )
+    cfg = EnvConfig(
+        groups=(GroupConfig(name="full"),),
+        episode_steps=100,
+        policy_frames=1,
+        task=task,
+        init_within_limits=False,
+        init_above_ground=False,
+    )
     return HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
 
 
@@ -71,7 +79,9 @@ def test_perfect_tracking_pays_one_and_sees_no_difference(goal):
     # (0, 0, 0) and the others keep their distance to it.
     rel = feats[:, -9:-6] if goal == "rotation" else feats[:, 6:9]
     np.testing.assert_allclose(rel[0], 0.0, atol=1e-6)
-    np.testing.assert_allclose(np.linalg.norm(rel, axis=-1), np.linalg.norm(frame.pos - frame.pos[0], axis=-1), atol=1e-5)
+    np.testing.assert_allclose(
+        np.linalg.norm(rel, axis=-1), np.linalg.norm(frame.pos - frame.pos[0], axis=-1), atol=1e-5
+    )
 
 
 def test_reward_and_termination_by_hand():
@@ -120,12 +130,15 @@ def test_a_loop_clip_ends_too():
     """A loop clip's time wraps without its root moving on: tracked past the end, the reference
     would jump back to the cycle's start (0.5 m here) and end every such episode as a failure."""
     import dataclasses
+
     env = _env(clip=dataclasses.replace(_moving_clip(), loop=True))
     task, dur = env.task, float(env.init_lib.clip_duration[0])
     with jit_enabled():
         here = jax.jit(lambda: _ref_frame(env, dur))()
         beyond = jax.jit(lambda: _ref_frame(env, dur + env.dt))()
-        last = jax.jit(lambda g: task.step(g, here, here, None))(task.init(None, None, (jnp.int32(0), jnp.float32(dur - env.dt))))
+        last = jax.jit(lambda g: task.step(g, here, here, None))(
+            task.init(None, None, (jnp.int32(0), jnp.float32(dur - env.dt)))
+        )
     assert float(jnp.linalg.norm(beyond.pos[0] - here.pos[0])) > 0.4  # the wrap this avoids
     assert bool(last.truncated) and not bool(last.terminated)
 
@@ -141,6 +154,7 @@ def test_residual_actions_servo_towards_the_next_reference_frame():
         base = jax.jit(res.task.pd_base)(goal)
     assert ab.task.pd_base(goal) is None
     from jaxmotion.motion.motionlib import sample
+
     ahead = sample(res.init_lib, jnp.int32(0), jnp.float32(t + res.dt)).dof_pos
     now = sample(res.init_lib, jnp.int32(0), jnp.float32(t)).dof_pos
     np.testing.assert_allclose(base, jnp.clip(ahead, res._lo, res._hi), atol=1e-6)
@@ -158,8 +172,11 @@ def test_tracking_in_the_scene(env):
     carries the goal after the body state, and an env whose clip ends is reset, not terminated."""
     with jit_enabled():
         reset = jax.jit(jax.vmap(env.reset_at))
-        state, obs = reset(jax.random.split(jax.random.PRNGKey(0), 2), jnp.zeros(2, jnp.int32),
-                           jnp.asarray([0.2, float(env.init_lib.clip_duration[0]) - env.dt]))
+        state, obs = reset(
+            jax.random.split(jax.random.PRNGKey(0), 2),
+            jnp.zeros(2, jnp.int32),
+            jnp.asarray([0.2, float(env.init_lib.clip_duration[0]) - env.dt]),
+        )
         assert obs.shape == (2, env.obs_size) and env.obs_size == env.body_obs_size + 360
         hold = env.action_for_target(state.data.qpos[:, 7:])
         step = jax.jit(jax.vmap(env.step))
@@ -173,6 +190,7 @@ def test_tracking_in_the_scene(env):
 # ---- evaluation metrics -----------------------------------------------------------------------
 def test_metrics_by_hand():
     from jaxmotion.evaluation.tracking import clip_metrics, summarize
+
     rng = np.random.default_rng(0)
     ref = np.cumsum(rng.normal(scale=0.01, size=(20, 15, 3)), 0)
     m = clip_metrics(ref + np.asarray([0.01, 0.0, 0.0]), ref)  # every body 10 mm off, the same way
@@ -184,9 +202,13 @@ def test_metrics_by_hand():
     assert m["vel_mm"] == pytest.approx(2.0, rel=1e-6) and m["acc_mm"] == pytest.approx(0.0, abs=1e-9)
     # Two clips, the second failed: success counts and metrics come from the first only.
     T = 20
-    ro = {"sim": np.stack([ref + [0.01, 0, 0], ref + [0.6, 0, 0]], 1), "ref": np.stack([ref, ref], 1),
-          "played": np.stack([np.ones(T, bool), np.arange(T) < 5], 1), "failed": np.array([False, True]),
-          "frames": np.array([T, T])}
+    ro = {
+        "sim": np.stack([ref + [0.01, 0, 0], ref + [0.6, 0, 0]], 1),
+        "ref": np.stack([ref, ref], 1),
+        "played": np.stack([np.ones(T, bool), np.arange(T) < 5], 1),
+        "failed": np.array([False, True]),
+        "frames": np.array([T, T]),
+    }
     s = summarize(ro, ["a", "b"])
     assert s["successes"] == 1 and s["success_rate"] == 0.5 and s["success_rate_0.25"] == 0.5
     assert s["g_mpjpe_mm"] == pytest.approx(10.0, rel=1e-6)
@@ -196,6 +218,7 @@ def test_metrics_by_hand():
 def test_unusable_clips_are_reported_not_raised(tmp_path):
     from jaxmotion.physics.character import character
     from jaxmotion.evaluation.tracking import load_eval_clips
+
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     clips, names, errors = load_eval_clips([bad, tmp_path / "missing.json"], character())
@@ -204,6 +227,7 @@ def test_unusable_clips_are_reported_not_raised(tmp_path):
 
 def test_noise_is_reproducible_and_zero_leaves_the_clip_alone():
     from jaxmotion.motion.noise import PoseNoise, perturb_clip
+
     clip = _moving_clip(90)
     assert perturb_clip(clip, 0.0, np.random.default_rng(0)) is clip
     a = perturb_clip(clip, 1.0, np.random.default_rng(5))
@@ -233,6 +257,7 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
     from jaxmotion.evaluation import tracking as TE
     from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
     from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+
     # Frames played varies from seed to seed (measured 23-45 of 80 over six untrained seeds) and, for
     # the trained policy, from chunk to chunk (40-56 at iterations 120-480): the best of three
     # untrained seeds against one snapshot was too noisy a bar (a CI run: trained 42 vs 45, at
@@ -245,14 +270,25 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
     # the untrained seeds' 28-45; the penalty has its own tests (by hand, and the power against
     # MuJoCo's actuator forces).
     task = TaskConfig(name="track", track=TrackConfig(weight=0.9, energy_coef=0.0))
-    env_cfg = EnvConfig(groups=(GroupConfig(name="full"),), episode_steps=60, policy_frames=1,
-                        early_termination=False, task=task)
-    cfg = TrainConfig(env=env_cfg,
-                      net=NetConfig(policy_hidden=(64, 64), critic_hidden=(64, 64), disc_hidden=(32, 32), disc_heads=4,
-                                    init_log_std=-2.0, state_dependent_std=False),
-                      ppo=PPOConfig(num_envs=32, horizon=8, minibatch_size=64, epochs=4, actor_lr=2e-4, critic_lr=1e-3),
-                      disc=DiscConfig(lr=1e-4, minibatch_size=64), iterations=iters, chunk=chunk,
-                      hard_negatives_every=10_000)  # the state carries the sampler; the loop below never mines
+    env_cfg = EnvConfig(
+        groups=(GroupConfig(name="full"),), episode_steps=60, policy_frames=1, early_termination=False, task=task
+    )
+    cfg = TrainConfig(
+        env=env_cfg,
+        net=NetConfig(
+            policy_hidden=(64, 64),
+            critic_hidden=(64, 64),
+            disc_hidden=(32, 32),
+            disc_heads=4,
+            init_log_std=-2.0,
+            state_dependent_std=False,
+        ),
+        ppo=PPOConfig(num_envs=32, horizon=8, minibatch_size=64, epochs=4, actor_lr=2e-4, critic_lr=1e-3),
+        disc=DiscConfig(lr=1e-4, minibatch_size=64),
+        iterations=iters,
+        chunk=chunk,
+        hard_negatives_every=10_000,
+    )  # the state carries the sampler; the loop below never mines
 
     def score(learner, ts):
         res, _ = TE.evaluate_clips(learner, ts)
@@ -286,9 +322,11 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
     assert noisy["noise"] == 1.0 and noisy["clips_total"] == 2 and all(c["played"] > 0 for c in noisy["clips"])
     base_played = np.array([b[0] for b in base])
     base_err = np.array([b[1] for b in base])
-    print(f"frames tracked within 0.5 m: untrained {base_played}, trained {[p for p, _, _ in last]}; g-MPJPE (mm) "
-          f"untrained {base_err.round(1)}, trained {[round(e, 1) for _, e, _ in last]}; {res['successes']}/"
-          f"{res['clips_total']} clips")
+    print(
+        f"frames tracked within 0.5 m: untrained {base_played}, trained {[p for p, _, _ in last]}; g-MPJPE (mm) "
+        f"untrained {base_err.round(1)}, trained {[round(e, 1) for _, e, _ in last]}; {res['successes']}/"
+        f"{res['clips_total']} clips"
+    )
     assert played > base_played.mean() + base_played.std()
     assert err < base_err.min() - (base_err.max() - base_err.min())
 
@@ -298,6 +336,7 @@ def test_sword_and_shield_clips_onto_the_humanoid():
     (the hand's orientation aside: its wrist is gone)."""
     from jaxmotion.motion.clip import drop_sword_shield
     from jaxmotion.physics.character import character
+
     ss = make_test_clip(12, 30.0, sword_shield=True, dof_pos=0.2 * np.sin(np.arange(12)[:, None] + np.arange(31)[None]))
     hum = drop_sword_shield(ss)
     assert not hum.sword_shield and hum.dof_pos.shape == (12, 28)
@@ -306,8 +345,9 @@ def test_sword_and_shield_clips_onto_the_humanoid():
     idx17 = [c17.body_index(n) for n in shared]
     np.testing.assert_allclose(hum.body_pos, ss.body_pos[:, idx17], atol=1e-9)
     not_hand = [i for i, n in enumerate(shared) if n != "right_hand"]
-    np.testing.assert_allclose(np.abs(np.sum(hum.body_quat[:, not_hand] * ss.body_quat[:, idx17][:, not_hand], -1)),
-                               1.0, atol=1e-9)
+    np.testing.assert_allclose(
+        np.abs(np.sum(hum.body_quat[:, not_hand] * ss.body_quat[:, idx17][:, not_hand], -1)), 1.0, atol=1e-9
+    )
     assert drop_sword_shield(hum) is hum
 
 
@@ -327,12 +367,21 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
     and an aliased array would delete the library's own weights (measured: the first hard-negative
     update of a real run then failed with 'Array has been deleted')."""
     from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+
     lib = MotionLib.from_clips([_moving_clip()])
-    env_cfg = EnvConfig(groups=(GroupConfig(name="full", frames=2),), policy_frames=1, early_termination=False,
-                        task=TaskConfig(name="track"))
-    cfg = TrainConfig(env=env_cfg, net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
-                      ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4), disc=DiscConfig(minibatch_size=4),
-                      hard_negatives_every=1)
+    env_cfg = EnvConfig(
+        groups=(GroupConfig(name="full", frames=2),),
+        policy_frames=1,
+        early_termination=False,
+        task=TaskConfig(name="track"),
+    )
+    cfg = TrainConfig(
+        env=env_cfg,
+        net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
+        ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4),
+        disc=DiscConfig(minibatch_size=4),
+        hard_negatives_every=1,
+    )
     learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
     with jit_enabled():
         ts = learner.init(jax.random.PRNGKey(0))  # as train.py does
@@ -345,6 +394,7 @@ def test_hard_negatives_are_mined_on_the_iteration_count_the_last_chunk_included
     mined before its last checkpoint and, resumed, samples as the uninterrupted run."""
     from jaxmotion.evaluation.tracking import mines_after
     from jaxmotion.training.learner import TrainConfig
+
     cfg = TrainConfig(iterations=100, chunk=10, hard_negatives_every=5)
     assert [it for it in range(10, 101, 10) if mines_after(it, cfg)] == [50, 100]
     assert not any(mines_after(it, dataclasses.replace(cfg, hard_negatives_every=0)) for it in range(10, 101, 10))
@@ -357,8 +407,9 @@ def test_uniform_init_sampling_picks_every_clip_alike():
     lib = MotionLib.from_clips([make_test_clip(30, 30.0, root_vel=(0.0, 0.0, 0.0), root_height=0.87), long])
     np.testing.assert_allclose(np.asarray(lib.clip_weight), [29 / 118, 89 / 118], rtol=1e-5)
     for sampling, want in (("duration", 89 / 118), ("uniform", 0.5)):
-        cfg = EnvConfig(groups=(GroupConfig(name="full"),), policy_frames=1, task=TaskConfig(name="track"),
-                        init_sampling=sampling)
+        cfg = EnvConfig(
+            groups=(GroupConfig(name="full"),), policy_frames=1, task=TaskConfig(name="track"), init_sampling=sampling
+        )
         env = HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
         with jit_enabled():
             clips = jax.jit(lambda k: jax.vmap(lambda kk: env.reset(kk)[0].goal.clip)(jax.random.split(k, 4000)))

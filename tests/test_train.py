@@ -47,11 +47,17 @@ def tiny_config() -> TrainConfig:
     return dataclasses.replace(
         base,
         env=dataclasses.replace(base.env, episode_steps=6),
-        net=dataclasses.replace(base.net, policy_hidden=(16, 16), critic_hidden=(16, 16),
-                                disc_hidden=(16, 16), disc_heads=2),
+        net=dataclasses.replace(
+            base.net, policy_hidden=(16, 16), critic_hidden=(16, 16), disc_hidden=(16, 16), disc_heads=2
+        ),
         ppo=dataclasses.replace(base.ppo, num_envs=4, horizon=4, minibatch_size=8, epochs=1),
         disc=dataclasses.replace(base.disc, minibatch_size=8),
-        seed=0, iterations=3, chunk=1, checkpoint_every=1, resume="")
+        seed=0,
+        iterations=3,
+        chunk=1,
+        checkpoint_every=1,
+        resume="",
+    )
 
 
 def _leaves(tree) -> list[tuple[str, np.ndarray]]:
@@ -84,8 +90,11 @@ def shared_chunk():
     real = run_mod.make_train_chunk
 
     def memo(learner, mesh, chunk, example):
-        key = (dataclasses.replace(learner.cfg, resume="", iterations=0, checkpoint_every=0), chunk,
-               tuple(d.id for d in mesh.devices.flat))
+        key = (
+            dataclasses.replace(learner.cfg, resume="", iterations=0, checkpoint_every=0),
+            chunk,
+            tuple(d.id for d in mesh.devices.flat),
+        )
         if key not in built:
             built[key] = real(learner, mesh, chunk, example)
         return built[key]
@@ -107,15 +116,17 @@ def runs(motion_data, shared_chunk, tmp_path_factory):
         a = train_mod.train(EXPERIMENT, cfg, run_dir=root / "A", progress=False, tensorboard=True)
         times["A (compile + 3 chunks)"] = time.perf_counter() - t
         t = time.perf_counter()
-        b1 = train_mod.train(EXPERIMENT, cfg, run_dir=root / "B", progress=False, tensorboard=False,
-                             stop_after_chunks=1)
+        b1 = train_mod.train(
+            EXPERIMENT, cfg, run_dir=root / "B", progress=False, tensorboard=False, stop_after_chunks=1
+        )
         b1_leaves = _leaves(b1.state)  # host copies: the state must outlive later runs.
         b1_rows = _rows(root / "B")
         # A row logged after the last checkpoint by the "killed" process: resume must drop it.
         with open(root / "B" / "metrics.jsonl", "a") as f:
             f.write(json.dumps({**b1_rows[-1], "iteration": 2, "samples": -1.0}) + "\n")
-        b = train_mod.train(EXPERIMENT, dataclasses.replace(cfg, resume=str(root / "B")),
-                            progress=False, tensorboard=False)
+        b = train_mod.train(
+            EXPERIMENT, dataclasses.replace(cfg, resume=str(root / "B")), progress=False, tensorboard=False
+        )
         times["B (1 chunk, then resume for 2)"] = time.perf_counter() - t
     print("\nrun times:", {k: f"{v:.1f}s" for k, v in times.items()})
     return dict(cfg=cfg, a=a, b1=b1, b1_leaves=b1_leaves, b1_rows=b1_rows, b=b, programs=len(shared_chunk))
@@ -245,13 +256,20 @@ def test_two_devices_match_one_device(runs, tmp_path, request):
     """
     script = tmp_path / "two_devices.py"
     script.write_text(TWO_DEVICE_SCRIPT)
-    env = dict(os.environ, JAX_DISABLE_JIT="0", XLA_FLAGS="--xla_force_host_platform_device_count=2",
-               JAX_PLATFORMS="cpu")
+    env = dict(
+        os.environ, JAX_DISABLE_JIT="0", XLA_FLAGS="--xla_force_host_platform_device_count=2", JAX_PLATFORMS="cpu"
+    )
     env.setdefault("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax_compilation_cache")))
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
     t = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(script), str(runs["b1"].run_dir), str(tmp_path)],
-                          env=env, capture_output=True, text=True, timeout=900, cwd=REPO)
+    proc = subprocess.run(
+        [sys.executable, str(script), str(runs["b1"].run_dir), str(tmp_path)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        cwd=REPO,
+    )
     print(f"\ntwo-device subprocess: {time.perf_counter() - t:.1f}s")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     info = json.loads((tmp_path / "info.json").read_text())
@@ -266,9 +284,11 @@ def test_two_devices_match_one_device(runs, tmp_path, request):
     ppo_steps = cfg.ppo.epochs * n // cfg.ppo.minibatch_size
     disc_steps = n // cfg.disc.minibatch_size
     # Adam moves an element by at most ~lr per step: the bound for a flipped-sign element.
-    adam_bound = {".policy_params": 2 * cfg.ppo.actor_lr * ppo_steps,
-                  ".critic_params": 2 * cfg.ppo.critic_lr * ppo_steps,
-                  ".disc_params": 2 * cfg.disc.lr * disc_steps}
+    adam_bound = {
+        ".policy_params": 2 * cfg.ppo.actor_lr * ppo_steps,
+        ".critic_params": 2 * cfg.ppo.critic_lr * ppo_steps,
+        ".disc_params": 2 * cfg.disc.lr * disc_steps,
+    }
 
     one = runs["b1_leaves"]
     two = np.load(tmp_path / "state.npz")
@@ -319,8 +339,14 @@ def test_two_devices_match_one_device(runs, tmp_path, request):
 
 def test_cli_rejects_config_typo():
     env = dict(os.environ, JAX_PLATFORMS="cpu")
-    proc = subprocess.run([sys.executable, "-m", "jaxmotion.train", EXPERIMENT, "ppo.num_env=4"],
-                          env=env, capture_output=True, text=True, timeout=300, cwd=REPO)
+    proc = subprocess.run(
+        [sys.executable, "-m", "jaxmotion.train", EXPERIMENT, "ppo.num_env=4"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=REPO,
+    )
     assert proc.returncode != 0
     assert "ppo.num_env" in proc.stderr and "num_envs" in proc.stderr, proc.stderr
     assert "minibatch_size" in proc.stderr  # the other valid keys are listed too
@@ -354,17 +380,21 @@ def synthetic_env():
 
 @pytest.mark.parametrize("weights", [(0.2, 0.3, 0.5), (1.0,), (1.0, -0.5), (0.0, 0.0)])
 def test_bad_objective_weights_rejected(synthetic_env, weights):
-    cfg = TrainConfig(env=synthetic_env.cfg, ppo=PPOConfig(num_envs=4, horizon=4, minibatch_size=8,
-                                                          objective_weights=weights),
-                      disc=DiscConfig(minibatch_size=8))
+    cfg = TrainConfig(
+        env=synthetic_env.cfg,
+        ppo=PPOConfig(num_envs=4, horizon=4, minibatch_size=8, objective_weights=weights),
+        disc=DiscConfig(minibatch_size=8),
+    )
     with pytest.raises(ValueError, match=r"objective_weights must be 2 non-negative"):
         Learner(cfg, env=synthetic_env)
 
 
 def test_good_objective_weights_are_normalised(synthetic_env):
-    cfg = TrainConfig(env=synthetic_env.cfg, ppo=PPOConfig(num_envs=4, horizon=4, minibatch_size=8,
-                                                          objective_weights=(1.0, 3.0)),
-                      disc=DiscConfig(minibatch_size=8))
+    cfg = TrainConfig(
+        env=synthetic_env.cfg,
+        ppo=PPOConfig(num_envs=4, horizon=4, minibatch_size=8, objective_weights=(1.0, 3.0)),
+        disc=DiscConfig(minibatch_size=8),
+    )
     learner = Learner(cfg, env=synthetic_env)
     np.testing.assert_allclose(np.asarray(learner.objective_weights), [0.25, 0.75])
 
@@ -402,8 +432,10 @@ def test_eval_cli_reports_and_writes_everything_from_one_rollout(runs, tmp_path,
     assert "DTW error" in out and "html:" in out
     # The same seeds without training: the baseline a trained run must beat.
     with jit_enabled():
-        assert E.main([str(run_dir), "--episodes", "2", "--untrained", "--no-plots",
-                       "--json", str(tmp_path / "u.json")]) == 0
+        assert (
+            E.main([str(run_dir), "--episodes", "2", "--untrained", "--no-plots", "--json", str(tmp_path / "u.json")])
+            == 0
+        )
     base = json.loads((tmp_path / "u.json").read_text())
     assert base["experiment"].endswith("(untrained)") and base["samples"] == 0
 

@@ -18,5 +18,4 @@ from _common import bout
 
 def config():
     cfg = bout("boxing", round_s=10.0)
-    return dataclasses.replace(cfg, meta="runs/imitate/boxing",
-                               ppo=dataclasses.replace(cfg.ppo, meta_weight_lr=1e-3))
+    return dataclasses.replace(cfg, meta="runs/imitate/boxing", ppo=dataclasses.replace(cfg.ppo, meta_weight_lr=1e-3))

@@ -5,6 +5,7 @@ reports its errors after about 20M samples. 5000 iterations here = 20.5M samples
 reference is one squat (``_common.SQUAT``); the CPU-sized variant, trained with it, squats
 (``chest_open+squat_cpu``); this one has not been retrained with it.
 """
+
 from _common import GYM, SQUAT, composite
 
 

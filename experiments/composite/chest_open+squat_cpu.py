@@ -7,6 +7,7 @@ paper; on a CPU the physics runs on MuJoCo C inside the compiled loop (``env.phy
 reference is one squat (ours: ``_common.SQUAT``, the shared clip without the bounce at its
 bottom). Results and their history: docs/results.md, "Table 1, chest open and squat".
 """
+
 import dataclasses
 
 from _common import GYM, SQUAT, composite
@@ -17,4 +18,5 @@ def config():
     return dataclasses.replace(
         cfg,
         net=dataclasses.replace(cfg.net, policy_hidden=(256, 256), critic_hidden=(256, 256)),
-        disc=dataclasses.replace(cfg.disc, gp_mode="sum_heads"))
+        disc=dataclasses.replace(cfg.disc, gp_mode="sum_heads"),
+    )

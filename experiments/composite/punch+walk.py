@@ -3,6 +3,7 @@
 The paper's Table 1 row 6 pairs punch with a 1.1 s walk (0.11 m / 0.10 m). Without a goal task
 the character may walk in any direction.
 """
+
 from _common import GYM, WALK, composite
 
 

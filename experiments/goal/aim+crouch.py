@@ -9,6 +9,11 @@ from _common import AIM, CROUCH, LOCATION_WALK, GroupConfig, TaskConfig, goal
 
 
 def config():
-    return goal(TaskConfig(name="aim+location", location=dataclasses.replace(LOCATION_WALK, weight=0.25)),
-                (GroupConfig(name="upper", motions=AIM, frames=2, speed_range=(0.8, 1.2), weight=0.2),
-                 GroupConfig(name="lower", motions=CROUCH, weight=0.3)), CROUCH)
+    return goal(
+        TaskConfig(name="aim+location", location=dataclasses.replace(LOCATION_WALK, weight=0.25)),
+        (
+            GroupConfig(name="upper", motions=AIM, frames=2, speed_range=(0.8, 1.2), weight=0.2),
+            GroupConfig(name="lower", motions=CROUCH, weight=0.3),
+        ),
+        CROUCH,
+    )

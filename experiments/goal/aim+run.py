@@ -9,6 +9,11 @@ from _common import AIM, RUN, LOCATION_RUN, GroupConfig, TaskConfig, goal
 
 
 def config():
-    return goal(TaskConfig(name="aim+location", location=dataclasses.replace(LOCATION_RUN, weight=0.25)),
-                (GroupConfig(name="upper", motions=AIM, frames=2, speed_range=(0.8, 1.2), weight=0.2),
-                 GroupConfig(name="lower", motions=RUN, weight=0.3)), RUN)
+    return goal(
+        TaskConfig(name="aim+location", location=dataclasses.replace(LOCATION_RUN, weight=0.25)),
+        (
+            GroupConfig(name="upper", motions=AIM, frames=2, speed_range=(0.8, 1.2), weight=0.2),
+            GroupConfig(name="lower", motions=RUN, weight=0.3),
+        ),
+        RUN,
+    )

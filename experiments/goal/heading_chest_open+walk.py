@@ -10,6 +10,11 @@ from _common import GYM, WALK, GroupConfig, TaskConfig, goal
 
 
 def config():
-    return goal(TaskConfig(name="heading"),
-                (GroupConfig(name="upper", motions=(GYM + "chest_open+walk_in_place.json",), speed_range=(0.8, 1.2)),
-                 GroupConfig(name="lower", motions=WALK)), WALK)
+    return goal(
+        TaskConfig(name="heading"),
+        (
+            GroupConfig(name="upper", motions=(GYM + "chest_open+walk_in_place.json",), speed_range=(0.8, 1.2)),
+            GroupConfig(name="lower", motions=WALK),
+        ),
+        WALK,
+    )

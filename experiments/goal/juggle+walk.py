@@ -14,8 +14,17 @@ from _common import WALK, GroupConfig, LocationConfig, TaskConfig, goal
 
 ARMS = ("right_upper_arm", "right_lower_arm", "right_hand", "left_upper_arm", "left_lower_arm", "left_hand")
 BODY = ("pelvis", "torso", "head", "right_thigh", "right_shin", "right_foot", "left_thigh", "left_shin", "left_foot")
-LOCATION_JUGGLE = LocationConfig(radius=0.75, speed_range=(1.0, 1.2), timer_range=(90, 150), v0_mean=1.0,
-                                 v0_std=0.0, v0_range=(1.0, 1.0), sharp_turns=False, max_overshoot=0.0, weight=0.1)
+LOCATION_JUGGLE = LocationConfig(
+    radius=0.75,
+    speed_range=(1.0, 1.2),
+    timer_range=(90, 150),
+    v0_mean=1.0,
+    v0_std=0.0,
+    v0_range=(1.0, 1.0),
+    sharp_turns=False,
+    max_overshoot=0.0,
+    weight=0.1,
+)
 
 
 def config():
@@ -23,10 +32,22 @@ def config():
 
     from jaxmotion.physics.props import PropConfig
     from jaxmotion.tasks import JuggleConfig
-    cfg = goal(TaskConfig(name="juggle+location", location=LOCATION_JUGGLE, juggle=JuggleConfig(weight=0.6)),
-               (GroupConfig(name="arms", motions=("compositemotion/gym/juggling.json",), links=ARMS,
-                            anchor="torso", speed_range=(0.8, 1.2), weight=0.06),
-                GroupConfig(name="body", motions=WALK, links=BODY, anchor="heading", weight=0.24)), WALK)
+
+    cfg = goal(
+        TaskConfig(name="juggle+location", location=LOCATION_JUGGLE, juggle=JuggleConfig(weight=0.6)),
+        (
+            GroupConfig(
+                name="arms",
+                motions=("compositemotion/gym/juggling.json",),
+                links=ARMS,
+                anchor="torso",
+                speed_range=(0.8, 1.2),
+                weight=0.06,
+            ),
+            GroupConfig(name="body", motions=WALK, links=BODY, anchor="heading", weight=0.24),
+        ),
+        WALK,
+    )
     balls = tuple(PropConfig(name=f"ball{i}", radius=0.05, mass=0.057, restitution=0.0) for i in range(3))
     physics = dataclasses.replace(cfg.env.physics, props=balls)
     return dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, physics=physics))

@@ -7,4 +7,6 @@ from _common import CROUCH, LOCATION_WALK, GroupConfig, TaskConfig, goal
 
 
 def config():
-    return goal(TaskConfig(name="location", location=LOCATION_WALK), (GroupConfig(name="full", motions=CROUCH),), CROUCH)
+    return goal(
+        TaskConfig(name="location", location=LOCATION_WALK), (GroupConfig(name="full", motions=CROUCH),), CROUCH
+    )

@@ -28,8 +28,10 @@ FOOTWORK = tuple(ASE + n + "_Motion.npy" for n in ("Idle_Ready", "Idle_Battle", 
 
 
 def config():
-    cfg = goal(TaskConfig(name="tennis"),
-               (GroupConfig(name="upper", motions=SWING, speed_range=(0.8, 1.2)),
-                GroupConfig(name="lower", motions=FOOTWORK)), FOOTWORK)
+    cfg = goal(
+        TaskConfig(name="tennis"),
+        (GroupConfig(name="upper", motions=SWING, speed_range=(0.8, 1.2)), GroupConfig(name="lower", motions=FOOTWORK)),
+        FOOTWORK,
+    )
     physics = PhysicsConfig(sword_shield=True, racket=True, props=(PropConfig(),), sim_hz=240.0)
     return dataclasses.replace(cfg, env=dataclasses.replace(cfg.env, physics=physics, episode_steps=300))

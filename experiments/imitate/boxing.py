@@ -9,7 +9,17 @@ from jaxmotion.physics.sim import PhysicsConfig
 
 
 def config():
-    env = EnvConfig(physics=PhysicsConfig(sim_hz=240.0), init_motions=BOXING_CLIPS, policy_frames=1,
-                    groups=(GroupConfig(name="full", motions=BOXING_CLIPS),))
-    return TrainConfig(env=env, net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256)),
-                       ppo=PPOConfig(), iterations=3000, chunk=10, eval_every=25)
+    env = EnvConfig(
+        physics=PhysicsConfig(sim_hz=240.0),
+        init_motions=BOXING_CLIPS,
+        policy_frames=1,
+        groups=(GroupConfig(name="full", motions=BOXING_CLIPS),),
+    )
+    return TrainConfig(
+        env=env,
+        net=NetConfig(policy_hidden=(256, 256), critic_hidden=(256, 256)),
+        ppo=PPOConfig(),
+        iterations=3000,
+        chunk=10,
+        eval_every=25,
+    )

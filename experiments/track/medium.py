@@ -7,9 +7,12 @@ Results: docs/results.md, "Ten clips on a CPU".
 
 from _common import track
 
-MEDIUM = tuple("deepmimic/humanoid3d_" + n + ".txt" for n in ("walk", "run", "punch", "kick", "dance_a", "jump")) + tuple(
-    "compositemotion/" + n + ".json" for n in ("gym/chest_open+walk_in_place", "gym/front_jumping_jack",
-                                               "iccgan/joyful_walk", "iccgan/stoop_walk"))
+MEDIUM = tuple(
+    "deepmimic/humanoid3d_" + n + ".txt" for n in ("walk", "run", "punch", "kick", "dance_a", "jump")
+) + tuple(
+    "compositemotion/" + n + ".json"
+    for n in ("gym/chest_open+walk_in_place", "gym/front_jumping_jack", "iccgan/joyful_walk", "iccgan/stoop_walk")
+)
 
 
 def config():

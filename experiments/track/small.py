@@ -7,5 +7,7 @@ from _common import track
 
 
 def config():
-    return track(("deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_run.txt", "deepmimic/humanoid3d_punch.txt"),
-                 iterations=3000)
+    return track(
+        ("deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_run.txt", "deepmimic/humanoid3d_punch.txt"),
+        iterations=3000,
+    )

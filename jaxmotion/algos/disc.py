@@ -138,9 +138,7 @@ def input_gradients(
         return vjp_fn(jnp.ones_like(logits))[0]
     if gp_mode == "per_head":
         num_heads = logits.shape[-1]
-        cotangents = jnp.broadcast_to(
-            jnp.eye(num_heads, dtype=logits.dtype)[:, None, :], (num_heads,) + logits.shape
-        )
+        cotangents = jnp.broadcast_to(jnp.eye(num_heads, dtype=logits.dtype)[:, None, :], (num_heads,) + logits.shape)
         return jax.vmap(lambda ct: vjp_fn(ct)[0])(cotangents)
     raise ValueError(f"gp_mode must be one of {GP_MODES}, got {gp_mode!r}")
 

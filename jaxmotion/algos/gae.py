@@ -103,9 +103,15 @@ def compute_gae(
     return jax.lax.stop_gradient(advantages), jax.lax.stop_gradient(returns)
 
 
-def apply_termination(rewards: jax.Array, next_values: jax.Array, terminated: jax.Array,
-                      truncated: jax.Array, terminate_reward: float, gamma: float,
-                      absorbing: bool) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+def apply_termination(
+    rewards: jax.Array,
+    next_values: jax.Array,
+    terminated: jax.Array,
+    truncated: jax.Array,
+    terminate_reward: float,
+    gamma: float,
+    absorbing: bool,
+) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     """How a terminating step (a fall) enters GAE; returns (rewards, next_values, term, trunc).
 
     Every objective is paid ``terminate_reward`` on the terminating step (None: its own rewards). With ``absorbing``, the

@@ -91,8 +91,7 @@ def popart_update(state: PopArtState, targets: jax.Array, beta: float = 0.1) -> 
     old_weight = (1.0 - beta) * state.debias
     debias = old_weight + beta
     mean = (old_weight * state.mean + beta * m1) / debias
-    var = (old_weight * (state.var + jnp.square(state.mean - mean))
-           + beta * (s1 + jnp.square(m1 - mean))) / debias
+    var = (old_weight * (state.var + jnp.square(state.mean - mean)) + beta * (s1 + jnp.square(m1 - mean))) / debias
     return PopArtState(
         mean=mean,
         var=var,

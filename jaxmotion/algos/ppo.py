@@ -175,9 +175,7 @@ def ppo_losses(
     mean, log_std = policy_apply(policy_params, batch.obs)
     log_prob = gaussian_log_prob(mean, log_std, batch.actions)
     log_ratio = log_prob - batch.log_probs
-    policy_loss = clipped_surrogate(
-        log_ratio, batch.advantages, weights, clip_eps, per_objective_clip
-    )
+    policy_loss = clipped_surrogate(log_ratio, batch.advantages, weights, clip_eps, per_objective_clip)
 
     values = critic_apply(critic_params, batch.obs)
     targets = batch.returns
@@ -206,14 +204,17 @@ def ppo_losses(
 def _param_labels(params: dict) -> dict:
     """Optimiser group of every parameter of ``{"actor": ..., "critic": ...}``: its top-level key,
     except the policy's meta-weight head (``meta_weight``, incremental learning), its own group."""
+
     def label(path, _):
         keys = [getattr(k, "key", None) for k in path]
         return "meta_weight" if keys[0] == "actor" and "meta_weight" in keys else keys[0]
+
     return jax.tree_util.tree_map_with_path(label, params)
 
 
-def make_optimizer(max_grad_norm: float, actor_lr: float, critic_lr: float,
-                   meta_weight_lr: float = 0.0) -> optax.GradientTransformation:
+def make_optimizer(
+    max_grad_norm: float, actor_lr: float, critic_lr: float, meta_weight_lr: float = 0.0
+) -> optax.GradientTransformation:
     """Global-norm clipping, then Adam per group of ``{"actor": ..., "critic": ...}``. With
     ``meta_weight_lr`` > 0 the meta-weight head has its own rate; without it the optimiser keeps
     the two prefix-labelled groups it always had, so existing checkpoints keep their structure."""
@@ -221,5 +222,7 @@ def make_optimizer(max_grad_norm: float, actor_lr: float, critic_lr: float,
     labels = {"actor": "actor", "critic": "critic"}
     if meta_weight_lr > 0:
         lrs["meta_weight"], labels = meta_weight_lr, _param_labels
-    return optax.chain(optax.clip_by_global_norm(max_grad_norm),
-                       optax.multi_transform({k: optax.adam(v) for k, v in lrs.items()}, labels))
+    return optax.chain(
+        optax.clip_by_global_norm(max_grad_norm),
+        optax.multi_transform({k: optax.adam(v) for k, v in lrs.items()}, labels),
+    )

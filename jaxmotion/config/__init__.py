@@ -4,9 +4,19 @@ The lowest layer: it imports nothing else of jaxmotion, so every layer may raise
 """
 
 from jaxmotion.config.errors import ConfigError, JaxmotionError, cli_errors
-from jaxmotion.config.experiments import (ENV_EXPERIMENTS, experiments_root, list_experiments, load,
-                                          load_experiment)
+from jaxmotion.config.experiments import ENV_EXPERIMENTS, experiments_root, list_experiments, load, load_experiment
 from jaxmotion.config.overrides import apply_overrides, from_dict, to_dict
 
-__all__ = ["ConfigError", "JaxmotionError", "cli_errors", "ENV_EXPERIMENTS", "experiments_root", "list_experiments",
-           "load", "load_experiment", "apply_overrides", "from_dict", "to_dict"]
+__all__ = [
+    "ConfigError",
+    "JaxmotionError",
+    "cli_errors",
+    "ENV_EXPERIMENTS",
+    "experiments_root",
+    "list_experiments",
+    "load",
+    "load_experiment",
+    "apply_overrides",
+    "from_dict",
+    "to_dict",
+]

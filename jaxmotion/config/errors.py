@@ -36,4 +36,5 @@ def cli_errors(main):
             if e.hint:
                 print(e.hint, file=sys.stderr)
             return 2
+
     return wrapped

@@ -88,9 +88,7 @@ def load_experiment(name: str, root: pathlib.Path | str | None = None) -> Any:
         close = difflib.get_close_matches(name, available, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         listing = ", ".join(available) if available else "none"
-        raise ConfigError(
-            f"unknown experiment {name!r}{hint}: no file {path}. Available in {root}: {listing}"
-        )
+        raise ConfigError(f"unknown experiment {name!r}{hint}: no file {path}. Available in {root}: {listing}")
     # Experiment files may import shared helpers (``_common.py``) from the experiments folder.
     if str(root) not in sys.path:
         sys.path.insert(0, str(root))
@@ -100,9 +98,7 @@ def load_experiment(name: str, root: pathlib.Path | str | None = None) -> Any:
         raise ConfigError(f"experiment file {path} defines no config() function")
     cfg = factory()
     if not (dataclasses.is_dataclass(cfg) and not isinstance(cfg, type)):
-        raise ConfigError(
-            f"config() in {path} returned a {type(cfg).__name__}, not a dataclass instance"
-        )
+        raise ConfigError(f"config() in {path} returned a {type(cfg).__name__}, not a dataclass instance")
     return cfg
 
 

@@ -63,9 +63,7 @@ def _field_types(cls: type) -> dict[str, Any]:
     try:
         hints = typing.get_type_hints(cls)
     except Exception as err:  # pylint: disable=broad-except
-        raise ConfigError(
-            f"cannot resolve the type annotations of {cls.__qualname__}: {err}"
-        ) from err
+        raise ConfigError(f"cannot resolve the type annotations of {cls.__qualname__}: {err}") from err
     return {f.name: hints.get(f.name, Any) for f in dataclasses.fields(cls) if f.init}
 
 
@@ -228,9 +226,7 @@ def _coerce(value: Any, tp: Any, cli: bool) -> Any:
 
 
 def _coerce_union(value: Any, args: tuple[Any, ...], cli: bool) -> Any:
-    if type(None) in args and (
-        value is None or (isinstance(value, str) and value.strip().lower() in _NONE_WORDS)
-    ):
+    if type(None) in args and (value is None or (isinstance(value, str) and value.strip().lower() in _NONE_WORDS)):
         return None
     for arg in args:
         if arg is type(None):
@@ -289,16 +285,13 @@ def _coerce_dict(value: Any, args: tuple[Any, ...], cli: bool) -> dict[Any, Any]
     key_tp, val_tp = args if len(args) == 2 else (Any, Any)
     if cli and isinstance(value, str):
         text = value.strip()
-        value = _parse_literal(text) if text[:1] == "{" else dict(
-            _split_pair(item) for item in _parse_sequence(text)
-        )
+        value = _parse_literal(text) if text[:1] == "{" else dict(_split_pair(item) for item in _parse_sequence(text))
     if isinstance(value, (list, tuple)):
         value = dict(value)
     if not isinstance(value, Mapping):
         raise _ParseError("expected a mapping")
     # JSON keys are strings; the annotation decides what they become.
-    return {_coerce(k, key_tp, cli or isinstance(k, str)): _coerce(v, val_tp, cli)
-            for k, v in value.items()}
+    return {_coerce(k, key_tp, cli or isinstance(k, str)): _coerce(v, val_tp, cli) for k, v in value.items()}
 
 
 def _coerce_dataclass(value: Any, cls: type, cli: bool) -> Any:
@@ -398,15 +391,11 @@ def _unknown_key_error(
     close = difflib.get_close_matches(name, list(valid), n=1)
     hint = f" (did you mean {_joined(prefix, close[0])!r}?)" if close else ""
     where = f"under {prefix!r}" if prefix else "at the top level"
-    return ConfigError(
-        f"unknown config {what} {full!r}{hint}. Valid {whats} {where}: {', '.join(valid)}"
-    )
+    return ConfigError(f"unknown config {what} {full!r}{hint}. Valid {whats} {where}: {', '.join(valid)}")
 
 
 def _bad_value_error(key: str, value: Any, tp: Any, reason: str) -> ConfigError:
-    return ConfigError(
-        f"bad value for {key!r}: {value!r} is not a valid {_type_name(tp)} ({reason})"
-    )
+    return ConfigError(f"bad value for {key!r}: {value!r} is not a valid {_type_name(tp)} ({reason})")
 
 
 # --------------------------------------------------------------------------- to_dict / from_dict
@@ -544,8 +533,7 @@ def _default_instance(cls: type, key: str) -> Any:
         return cls()
     except TypeError as err:
         raise ConfigError(
-            f"{key!r} is None and {cls.__name__} has required fields; set it whole with "
-            f"{key}='{{...}}' (JSON)"
+            f"{key!r} is None and {cls.__name__} has required fields; set it whole with {key}='{{...}}' (JSON)"
         ) from err
 
 

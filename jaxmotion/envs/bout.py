@@ -77,11 +77,17 @@ class BoutEnv:
         self.mj = m
         self.model = mjx.put_model(m, impl=sim._impl(pc))
         self.channels = A.channels(ac, m)
-        self.physics = physics if physics is not None else backends.make_physics(
-            pc.backend, m, A.arena_mjcf(ac), self.model, pc.substeps, pc.threads or None, self.channels)
+        self.physics = (
+            physics
+            if physics is not None
+            else backends.make_physics(
+                pc.backend, m, A.arena_mjcf(ac), self.model, pc.substeps, pc.threads or None, self.channels
+            )
+        )
         self.groups, self.group_idx, self.motion_libs = [], [], ()
-        self.init_lib = init_lib if init_lib is not None else load_motionlib(cfg.init_motions, ch,
-                                                                             drop_props=cfg.drop_props)
+        self.init_lib = (
+            init_lib if init_lib is not None else load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props)
+        )
         self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
         self._data0 = mjx.make_data(self.model)
         self._fk = LinkFK(m)
@@ -91,8 +97,13 @@ class BoutEnv:
         for k in range(PLAYERS):
             b0, b1 = lay.bodies(k).start, lay.bodies(k).stop
             geoms = [g for g in range(m.ngeom) if b0 <= m.geom_bodyid[g] < b1 and m.geom_type[g] in (2, 3, 6)]
-            self._geoms.append((np.asarray(geoms), jnp.asarray(m.geom_size[geoms], jnp.float32),
-                                jnp.asarray(m.geom_type[geoms], jnp.int32)))
+            self._geoms.append(
+                (
+                    np.asarray(geoms),
+                    jnp.asarray(m.geom_size[geoms], jnp.float32),
+                    jnp.asarray(m.geom_type[geoms], jnp.int32),
+                )
+            )
         self.task = make_task(cfg.task, self)
         if not getattr(self.task, "two_player", False):
             raise ValueError(f"task {cfg.task.name!r} is not a two-player task (boxing, fencing)")
@@ -174,8 +185,9 @@ class BoutEnv:
     def pd_target(self, action: jax.Array) -> jax.Array:
         return (self._mid + self.cfg.action_scale * action * self._half).reshape(-1)
 
-    def step(self, state: BoutState, action: jax.Array,
-             reset: tuple[BoutState, jax.Array] | None = None) -> tuple[BoutState, StepOut]:
+    def step(
+        self, state: BoutState, action: jax.Array, reset: tuple[BoutState, jax.Array] | None = None
+    ) -> tuple[BoutState, StepOut]:
         """One control step of both players (``action`` [2, A]); see the module docstring."""
         cfg = self.cfg
         data, ground, forces = self.physics.step_forces(state.data, self.pd_target(action))
@@ -185,12 +197,20 @@ class BoutEnv:
         unstable = ~finite | jnp.any(jnp.abs(data.qvel) > cfg.max_qvel)
         clean = lambda x: jnp.where(unstable, 0.0, jnp.nan_to_num(x, posinf=0.0, neginf=0.0))
         frame = jax.tree.map(clean, self.frames_of(data.qpos, data.qvel))
-        fell = (jnp.any(ground & self._bad_body, -1) & (steps > cfg.contact_grace_steps)
-                & cfg.early_termination)
+        fell = jnp.any(ground & self._bad_body, -1) & (steps > cfg.contact_grace_steps) & cfg.early_termination
         rng, k_reset, k_task = jax.random.split(state.rng, 3)
         qvel0 = self.player_qvel(state.data.qvel)
-        task = self.task.step(state.goal, state.frame, frame, clean(forces), fell, qvel0,
-                              self.player_qvel(clean(data.qvel)), steps, k_task)
+        task = self.task.step(
+            state.goal,
+            state.frame,
+            frame,
+            clean(forces),
+            fell,
+            qvel0,
+            self.player_qvel(clean(data.qvel)),
+            steps,
+            k_task,
+        )
         rewards = jnp.where(unstable, 0.0, task.rewards)
         terminated = task.terminated | unstable
         time_up = (steps >= cfg.episode_steps) | jnp.any(task.truncated)
@@ -202,9 +222,16 @@ class BoutEnv:
         reset_state, reset_obs = self.reset(k_reset) if reset is None else reset
         out_state = jax.tree.map(lambda a, b: jnp.where(done, a, b), reset_state, new_state)
         obs = jnp.where(done, reset_obs, final_obs)
-        return out_state, StepOut(obs=obs, final_obs=final_obs, disc_obs=(), terminated=terminated,
-                                  truncated=truncated, unstable=unstable, task_reward=rewards,
-                                  info=task.info)
+        return out_state, StepOut(
+            obs=obs,
+            final_obs=final_obs,
+            disc_obs=(),
+            terminated=terminated,
+            truncated=truncated,
+            unstable=unstable,
+            task_reward=rewards,
+            info=task.info,
+        )
 
 
 def place(qpos: jax.Array, qvel: jax.Array, xy: jax.Array, yaw: jax.Array) -> tuple[jax.Array, jax.Array]:
@@ -222,6 +249,7 @@ def make_env(cfg, **kw):
     """The scene ``cfg`` describes: ``HumanoidEnv`` for one player, ``BoutEnv`` for two."""
     if cfg.players == 1:
         from jaxmotion.envs.humanoid import HumanoidEnv
+
         return HumanoidEnv(cfg, **kw)
     if cfg.players == PLAYERS:
         return BoutEnv(cfg, **kw)

@@ -30,8 +30,16 @@ from mujoco import mjx
 
 from jaxmotion.motion import observations as O
 from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
-from jaxmotion.motion.motionlib import (MotionLib, load_motionlib, reweighted, qpos_of, qpos_qvel, sample, sample_times,
-                                        sample_windows)
+from jaxmotion.motion.motionlib import (
+    MotionLib,
+    load_motionlib,
+    reweighted,
+    qpos_of,
+    qpos_qvel,
+    sample,
+    sample_times,
+    sample_windows,
+)
 from jaxmotion.physics import sim
 from jaxmotion.physics.arena import ArenaConfig
 from jaxmotion.physics.fk import LinkFK
@@ -155,8 +163,13 @@ class StepOut:
 class HumanoidEnv:
     """Pure-functional humanoid imitation environment (see module docstring)."""
 
-    def __init__(self, cfg: EnvConfig, motion_libs: Sequence[MotionLib] | None = None,
-                 init_lib: MotionLib | None = None, physics=None):
+    def __init__(
+        self,
+        cfg: EnvConfig,
+        motion_libs: Sequence[MotionLib] | None = None,
+        init_lib: MotionLib | None = None,
+        physics=None,
+    ):
         """``physics`` replaces the backend that ``cfg.physics`` names (e.g. one with other gains)."""
         self.cfg = cfg
         self.character = character(cfg.physics.sword_shield)
@@ -181,13 +194,16 @@ class HumanoidEnv:
             self.groups.append(resolve_group({"name": g.name, "links": links, "anchor": anchor}, ch))
         self.group_idx = [group_indices(g, ch) for g in self.groups]
         if motion_libs is None:
-            motion_libs = [load_motionlib(g.motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet)
-                           for g in cfg.groups]
+            motion_libs = [
+                load_motionlib(g.motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet) for g in cfg.groups
+            ]
         self.motion_libs = tuple(motion_libs)
         if init_lib is None:
-            init_lib = (load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet)
-                        if cfg.init_motions
-                        else self.motion_libs[0])
+            init_lib = (
+                load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props, level=cfg.level_feet)
+                if cfg.init_motions
+                else self.motion_libs[0]
+            )
         self.init_lib = reweighted(init_lib, cfg.init_sampling)
         names = {n for lib in (*self.motion_libs, init_lib) for n in (*lib.clip_names, *lib.clip_paths)}
         unknown = [p for p in cfg.level_feet if not any(n == p or n.endswith(p) for n in names)]
@@ -252,8 +268,9 @@ class HumanoidEnv:
             # (clamped joints or a clip made for another skeleton can put a foot 10 cm deep).
             lift = jnp.maximum(-self.lowest_point(qpos_h[-1]), 0.0)
             qpos_h = qpos_h.at[..., 2].add(lift)
-        data = self._data0.replace(qpos=self._data0.qpos.at[:self._nq].set(qpos_h[-1]),
-                                   qvel=self._data0.qvel.at[:self._nv].set(qvel_h[-1]))
+        data = self._data0.replace(
+            qpos=self._data0.qpos.at[: self._nq].set(qpos_h[-1]), qvel=self._data0.qvel.at[: self._nv].set(qvel_h[-1])
+        )
         # The history is what the simulator's kinematics make of the reference poses, so the first
         # windows after a reset are built exactly like every later one.
         hist = self.frames_of(qpos_h, qvel_h)
@@ -264,14 +281,14 @@ class HumanoidEnv:
 
     # ---- observations ------------------------------------------------------------------
     def policy_obs(self, state: EnvState) -> jax.Array:
-        h = jax.tree.map(lambda x: x[-self.cfg.policy_frames:], state.hist)
+        h = jax.tree.map(lambda x: x[-self.cfg.policy_frames :], state.hist)
         return jnp.concatenate([O.policy_obs(h), self.task.observe(state.goal, _last(state.hist))])
 
     def disc_obs(self, hist: O.LinkFrames) -> tuple[jax.Array, ...]:
         """Per group, the discriminator view of the newest ``frames`` link frames."""
         out = []
         for g, (links, anchor) in zip(self.cfg.groups, self.group_idx):
-            out.append(O.disc_obs(hist.pos[-g.frames:], hist.quat[-g.frames:], links, int(anchor)))
+            out.append(O.disc_obs(hist.pos[-g.frames :], hist.quat[-g.frames :], links, int(anchor)))
         return tuple(out)
 
     def ref_disc_obs(self, rng: jax.Array, n: int) -> tuple[jax.Array, ...]:
@@ -318,8 +335,11 @@ class HumanoidEnv:
     def props_of(self, data: mjx.Data, force: jax.Array | None = None) -> Props:
         """The props' state in ``data`` (``physics/props.py``) and their force channels."""
         p = self.num_props
-        return Props(qpos=data.qpos[self._nq:].reshape(p, 7), qvel=data.qvel[self._nv:].reshape(p, 6),
-                     force=jnp.zeros((0,), jnp.float32) if force is None else force)
+        return Props(
+            qpos=data.qpos[self._nq :].reshape(p, 7),
+            qvel=data.qvel[self._nv :].reshape(p, 6),
+            force=jnp.zeros((0,), jnp.float32) if force is None else force,
+        )
 
     def place_props(self, data: mjx.Data, goal: Any) -> mjx.Data:
         """``data`` with the props where the task puts them (``Task.place``); moved props lose
@@ -329,14 +349,17 @@ class HumanoidEnv:
         before = self.props_of(data)
         after = self.task.place(goal, before)
         moved = jnp.repeat(jnp.any(after.qvel != before.qvel, -1) | jnp.any(after.qpos != before.qpos, -1), 6)
-        return data.replace(qpos=data.qpos.at[self._nq:].set(after.qpos.reshape(-1)),
-                            qvel=data.qvel.at[self._nv:].set(after.qvel.reshape(-1)),
-                            qacc_warmstart=data.qacc_warmstart.at[self._nv:].set(
-                                jnp.where(moved, 0.0, data.qacc_warmstart[self._nv:])))
+        return data.replace(
+            qpos=data.qpos.at[self._nq :].set(after.qpos.reshape(-1)),
+            qvel=data.qvel.at[self._nv :].set(after.qvel.reshape(-1)),
+            qacc_warmstart=data.qacc_warmstart.at[self._nv :].set(
+                jnp.where(moved, 0.0, data.qacc_warmstart[self._nv :])
+            ),
+        )
 
     def character_qpos(self, qpos: jax.Array) -> jax.Array:
         """The character's part [..., 7 + n_dof] of a scene's ``qpos``."""
-        return qpos[..., :self._nq]
+        return qpos[..., : self._nq]
 
     # ---- step --------------------------------------------------------------------------
     def pd_target(self, action: jax.Array, base: jax.Array | None = None) -> jax.Array:
@@ -347,7 +370,7 @@ class HumanoidEnv:
     def power(self, data: mjx.Data, target: jax.Array) -> jax.Array:
         """The servo's mechanical power sum_j |tau_j qdot_j| (W) at ``data``, holding ``target``
         (the torque formula of ``sim.pd_torque``: the state after the step, not a substep mean)."""
-        q, qd = data.qpos[7:self._nq], data.qvel[6:self._nv]
+        q, qd = data.qpos[7 : self._nq], data.qvel[6 : self._nv]
         tau = sim.pd_torque(self.character, q, qd, target, self.cfg.physics.servo_damping)
         return jnp.nan_to_num(jnp.sum(jnp.abs(tau * qd)), nan=0.0, posinf=0.0)
 
@@ -355,8 +378,9 @@ class HumanoidEnv:
         """The action whose PD target is ``target`` [.., n_dof] (inverse of ``pd_target``)."""
         return (target - (self._mid if base is None else base)) / (self.cfg.action_scale * self._half)
 
-    def step(self, state: EnvState, action: jax.Array,
-             reset: tuple[EnvState, jax.Array] | None = None) -> tuple[EnvState, StepOut]:
+    def step(
+        self, state: EnvState, action: jax.Array, reset: tuple[EnvState, jax.Array] | None = None
+    ) -> tuple[EnvState, StepOut]:
         """One control step on the configured physics backend.
 
         ``reset``: the (state, observation) an environment that ends its episode here restarts
@@ -369,9 +393,9 @@ class HumanoidEnv:
         data, ground, force = self.physics.step_forces(state.data, target)
         # Contacts are those of the last substep's collision pass (one substep old); the link
         # frames are computed at the new state for the observations, in JAX for every backend.
-        qvel_c = data.qvel[:self._nv]
-        frame = self.frames_of(data.qpos[:self._nq], qvel_c)
-        touching = fall_contacts(ground[:self._nb], self._bad_body, frame.pos[:, 2], cfg.fall_height)
+        qvel_c = data.qvel[: self._nv]
+        frame = self.frames_of(data.qpos[: self._nq], qvel_c)
+        touching = fall_contacts(ground[: self._nb], self._bad_body, frame.pos[:, 2], cfg.fall_height)
         hist = jax.tree.map(lambda h, f: jnp.concatenate([h[1:], f[None]], 0), state.hist, frame)
         steps = state.steps + 1
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
@@ -398,9 +422,16 @@ class HumanoidEnv:
         new_state = new_state.replace(rng=rng)
         out_state = jax.tree.map(lambda a, b: jnp.where(done, a, b), reset_state, new_state)
         obs = jnp.where(done, reset_obs, final_obs)
-        return out_state, StepOut(obs=obs, final_obs=final_obs, disc_obs=dobs, terminated=terminated,
-                                  truncated=truncated, unstable=unstable, task_reward=task_reward,
-                                  info=task.info)
+        return out_state, StepOut(
+            obs=obs,
+            final_obs=final_obs,
+            disc_obs=dobs,
+            terminated=terminated,
+            truncated=truncated,
+            unstable=unstable,
+            task_reward=task_reward,
+            info=task.info,
+        )
 
 
 def joint_arrays(ch, allowed_contacts: Sequence[str]) -> tuple[jax.Array, ...]:
@@ -409,8 +440,13 @@ def joint_arrays(ch, allowed_contacts: Sequence[str]) -> tuple[jax.Array, ...]:
     lo, hi = ch.joint_range[:, 0], ch.joint_range[:, 1]
     allowed = {ch.body_index(b) for b in allowed_contacts}
     f = lambda x: jnp.asarray(x, jnp.float32)
-    return (f((lo + hi) / 2), f((hi - lo) / 2), f(lo), f(hi),
-            jnp.asarray([b not in allowed for b in range(ch.num_bodies)]))
+    return (
+        f((lo + hi) / 2),
+        f((hi - lo) / 2),
+        f(lo),
+        f(hi),
+        jnp.asarray([b not in allowed for b in range(ch.num_bodies)]),
+    )
 
 
 def lowest_point(xpos: jax.Array, xmat: jax.Array, size: jax.Array, typ: jax.Array) -> jax.Array:

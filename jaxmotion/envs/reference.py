@@ -26,8 +26,9 @@ def group_frame_positions(pos: np.ndarray, quat: np.ndarray, links: np.ndarray, 
     return np.asarray(R.quat_rotate(np.broadcast_to(inv_q[:, None], rel.shape[:-1] + (4,)), rel))
 
 
-def align_to_start(ref_root_pos: np.ndarray, ref_root_quat: np.ndarray, sim_root_pos0: np.ndarray,
-                   sim_root_quat0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def align_to_start(
+    ref_root_pos: np.ndarray, ref_root_quat: np.ndarray, sim_root_pos0: np.ndarray, sim_root_quat0: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """The rigid xy + yaw motion taking the reference's first root heading frame onto the
     simulation's first one: ``(q_align [4] wxyz, offset [3])`` with
     ``p' = rotate(q_align, p) + offset``.
@@ -37,16 +38,15 @@ def align_to_start(ref_root_pos: np.ndarray, ref_root_quat: np.ndarray, sim_root
       sim_root_pos0: [3], sim_root_quat0: [4].
     """
     f32 = lambda x: np.asarray(x, np.float32)  # heading_frame is jnp (float32 without x64)
-    o_ref, inv_ref = (np.asarray(x, np.float64) for x in O.heading_frame(
-        f32(ref_root_pos[0]), f32(ref_root_quat[0])))
-    o_sim, inv_sim = (np.asarray(x, np.float64) for x in O.heading_frame(
-        f32(sim_root_pos0), f32(sim_root_quat0)))
+    o_ref, inv_ref = (np.asarray(x, np.float64) for x in O.heading_frame(f32(ref_root_pos[0]), f32(ref_root_quat[0])))
+    o_sim, inv_sim = (np.asarray(x, np.float64) for x in O.heading_frame(f32(sim_root_pos0), f32(sim_root_quat0)))
     q = np.asarray(R.quat_mul(R.quat_conj(inv_sim), inv_ref))  # ref heading frame -> sim's
     return q, o_sim - np.asarray(R.quat_rotate(q, o_ref))
 
 
-def align_pose(q_align: np.ndarray, offset: np.ndarray, pos: np.ndarray,
-               quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def align_pose(
+    q_align: np.ndarray, offset: np.ndarray, pos: np.ndarray, quat: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Applies ``align_to_start``'s motion to positions [..., 3] and orientations [..., 4]."""
     pos, quat = np.asarray(pos, np.float64), np.asarray(quat, np.float64)
     p = np.asarray(R.quat_rotate(np.broadcast_to(q_align, pos.shape[:-1] + (4,)), pos)) + offset

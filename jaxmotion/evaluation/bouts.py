@@ -44,7 +44,7 @@ def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: b
         keys = jax.random.split(k_reset, bouts // 2)
         state, obs = jax.vmap(env.reset)(jnp.repeat(keys, 2, axis=0))  # pairs share a start state
         state0, obs0 = state, obs
-        mine = (jnp.arange(2)[None, :] == side[:, None])  # [E, 2]: which player is the evaluated one
+        mine = jnp.arange(2)[None, :] == side[:, None]  # [E, 2]: which player is the evaluated one
 
         def step(carry, k):
             state, obs, alive = carry
@@ -61,7 +61,8 @@ def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: b
 
         alive0 = jnp.ones((bouts,), bool)
         (last, _, _), (qpos, alive, info, term, trunc) = jax.lax.scan(
-            step, (state, obs, alive0), jax.random.split(k_act, steps))
+            step, (state, obs, alive0), jax.random.split(k_act, steps)
+        )
         return qpos, alive, info, term, trunc, mine
 
     cache[sig] = run
@@ -85,15 +86,22 @@ def outcomes(sport: str, ro: dict, dt: float) -> dict:
     me = lambda x: np.where(mine[None], x, 0).sum(-1)  # [T, E] the evaluated player's value
     op = lambda x: np.where(mine[None], 0, x).sum(-1)
     length = alive.sum(0) * dt
-    out = {"length_s": length,
-           "fall_me": (me(info["fall"]) * alive).any(0), "fall_op": (op(info["fall"]) * alive).any(0)}
+    out = {
+        "length_s": length,
+        "fall_me": (me(info["fall"]) * alive).any(0),
+        "fall_op": (op(info["fall"]) * alive).any(0),
+    }
     if sport == "boxing":
         dealt = np.where(live, info["damage_dealt"], 0.0)
         diff = me(dealt).sum(0) - op(dealt).sum(0)
-        out.update(score=np.sign(diff), damage_diff=diff, hits_me=(me(info["hit"]) * alive).sum(0),
-                   hits_op=(op(info["hit"]) * alive).sum(0),
-                   penalty_me=(me(info["fall"] | info["stuck"] | info["ropes"]) * alive).any(0),
-                   penalty_op=(op(info["fall"] | info["stuck"] | info["ropes"]) * alive).any(0))
+        out.update(
+            score=np.sign(diff),
+            damage_diff=diff,
+            hits_me=(me(info["hit"]) * alive).sum(0),
+            hits_op=(op(info["hit"]) * alive).sum(0),
+            penalty_me=(me(info["fall"] | info["stuck"] | info["ropes"]) * alive).any(0),
+            penalty_op=(op(info["fall"] | info["stuck"] | info["ropes"]) * alive).any(0),
+        )
     else:
         win = (me(info["win"]) * alive).any(0)
         loss = (me(info["loss"]) * alive).any(0)
@@ -101,8 +109,13 @@ def outcomes(sport: str, ro: dict, dt: float) -> dict:
         pen_op = (op(info["fall"] | info["out"]) * alive).any(0)
         score = np.where(win, 1, np.where(loss, -1, 0))
         score = np.where((score == 0) & pen_me & ~pen_op, -1, np.where((score == 0) & pen_op & ~pen_me, 1, score))
-        out.update(score=score, touches_me=(me(info["touch"]) * alive).sum(0),
-                   touches_op=(op(info["touch"]) * alive).sum(0), penalty_me=pen_me, penalty_op=pen_op)
+        out.update(
+            score=score,
+            touches_me=(me(info["touch"]) * alive).sum(0),
+            touches_op=(op(info["touch"]) * alive).sum(0),
+            penalty_me=pen_me,
+            penalty_op=pen_op,
+        )
     return out
 
 
@@ -110,23 +123,35 @@ def summarize(sport: str, oc: dict) -> dict:
     """Win/draw/loss counts with intervals, and the sport's means (the JSON of ``eval``)."""
     s = np.asarray(oc["score"])
     n = len(s)
-    res = {"bouts": n, "wins": int((s > 0).sum()), "draws": int((s == 0).sum()), "losses": int((s < 0).sum()),
-           "win_rate": float((s > 0).mean()), "win_rate_ci95": _ci(s > 0),
-           "bout_length_s_mean": float(np.mean(oc["length_s"])),
-           "falls": {"self": int(oc["fall_me"].sum()), "opponent": int(oc["fall_op"].sum())},
-           "penalties": {"self": int(oc["penalty_me"].sum()), "opponent": int(oc["penalty_op"].sum())}}
+    res = {
+        "bouts": n,
+        "wins": int((s > 0).sum()),
+        "draws": int((s == 0).sum()),
+        "losses": int((s < 0).sum()),
+        "win_rate": float((s > 0).mean()),
+        "win_rate_ci95": _ci(s > 0),
+        "bout_length_s_mean": float(np.mean(oc["length_s"])),
+        "falls": {"self": int(oc["fall_me"].sum()), "opponent": int(oc["fall_op"].sum())},
+        "penalties": {"self": int(oc["penalty_me"].sum()), "opponent": int(oc["penalty_op"].sum())},
+    }
     if sport == "boxing":
-        res.update(damage_diff_mean=float(np.mean(oc["damage_diff"])), damage_diff_ci95=_ci(oc["damage_diff"]),
-                   hits={"self": int(oc["hits_me"].sum()), "opponent": int(oc["hits_op"].sum())},
-                   bouts_with_damage=int(((oc["hits_me"] + oc["hits_op"]) > 0).sum()))
+        res.update(
+            damage_diff_mean=float(np.mean(oc["damage_diff"])),
+            damage_diff_ci95=_ci(oc["damage_diff"]),
+            hits={"self": int(oc["hits_me"].sum()), "opponent": int(oc["hits_op"].sum())},
+            bouts_with_damage=int(((oc["hits_me"] + oc["hits_op"]) > 0).sum()),
+        )
     else:
-        res.update(touches={"self": int(oc["touches_me"].sum()), "opponent": int(oc["touches_op"].sum())},
-                   bout_lengths_s=[float(x) for x in oc["length_s"]])
+        res.update(
+            touches={"self": int(oc["touches_me"].sum()), "opponent": int(oc["touches_op"].sum())},
+            bout_lengths_s=[float(x) for x in oc["length_s"]],
+        )
     return res
 
 
-def play(learner, ts, opponent=None, bouts: int = 32, steps: int | None = None, seed: int = 0,
-         deterministic: bool = True) -> tuple[dict, dict]:
+def play(
+    learner, ts, opponent=None, bouts: int = 32, steps: int | None = None, seed: int = 0, deterministic: bool = True
+) -> tuple[dict, dict]:
     """Plays ``bouts`` (even) bouts of ``ts``'s policy against ``opponent`` = (learner, state)
     (default: itself); returns (summary, recording). The recording holds ``qpos`` [T, E, nq],
     ``alive`` [T, E], ``info`` {k: [T, E, 2]}, ``mine`` [E, 2] (the evaluated player)."""
@@ -134,13 +159,19 @@ def play(learner, ts, opponent=None, bouts: int = 32, steps: int | None = None, 
         raise ValueError(f"bouts must be an even number >= 2 (pairs with the sides swapped), got {bouts}")
     op_learner, op_ts = opponent if opponent is not None else (learner, ts)
     if (op_learner.env.obs_size, op_learner.env.action_size) != (learner.env.obs_size, learner.env.action_size):
-        raise ValueError(f"the opponent's observation/action sizes {op_learner.env.obs_size}/"
-                         f"{op_learner.env.action_size} differ from {learner.env.obs_size}/{learner.env.action_size}")
+        raise ValueError(
+            f"the opponent's observation/action sizes {op_learner.env.obs_size}/"
+            f"{op_learner.env.action_size} differ from {learner.env.obs_size}/{learner.env.action_size}"
+        )
     steps = steps or learner.cfg.env.episode_steps
     run = _play_fn(learner, op_learner, bouts, steps, deterministic)
     qpos, alive, info, term, trunc, mine = jax.device_get(run(ts, op_ts, jax.random.PRNGKey(seed)))
-    ro = {"qpos": np.asarray(qpos), "alive": np.asarray(alive), "info": {k: np.asarray(v) for k, v in info.items()},
-          "mine": np.asarray(mine)}
+    ro = {
+        "qpos": np.asarray(qpos),
+        "alive": np.asarray(alive),
+        "info": {k: np.asarray(v) for k, v in info.items()},
+        "mine": np.asarray(mine),
+    }
     sport = learner.cfg.env.arena.sport
     return summarize(sport, outcomes(sport, ro, learner.env.dt)), ro
 
@@ -154,8 +185,8 @@ def touch_markers(learner, ro: dict, bout: int = 0, hold: int = 6) -> dict[str, 
     out = {}
     for k in range(2):
         hit = info[key][:, bout, k].astype(bool)
-        held = np.convolve(hit.astype(float), np.ones(hold), mode="full")[:len(hit)] > 0
-        p = qpos[:, k * nq:k * nq + 3] + np.array([0.0, 0.0, 0.85])
+        held = np.convolve(hit.astype(float), np.ones(hold), mode="full")[: len(hit)] > 0
+        p = qpos[:, k * nq : k * nq + 3] + np.array([0.0, 0.0, 0.85])
         p = np.where(held[:, None], p, np.array([0.0, 0.0, -100.0]))
         out[f"touch_p{k}"] = np.repeat(p[:, None], 2, axis=1)
     return out
@@ -170,8 +201,16 @@ def write_bout_video(learner, ro: dict, path: Path, bout: int = 0) -> Path:
     rgba = [float(x) for x in PLAYER_RGBA[1].split()]
     colors = {b: tuple(float(x) for x in PLAYER_RGBA[0].split()) for b in range(learner.env.layout.nb)}
     mk = {k: v[:n] for k, v in touch_markers(learner, ro, bout).items()}
-    frames = iter_frames(q[:, :nq], q[:, nq:], colors, ghost_rgba=rgba, markers=mk, camera_distance=6.0,
-                         camera_elevation=-20.0, scenery=scenery(learner.cfg.env.arena, _piste(learner)))
+    frames = iter_frames(
+        q[:, :nq],
+        q[:, nq:],
+        colors,
+        ghost_rgba=rgba,
+        markers=mk,
+        camera_distance=6.0,
+        camera_elevation=-20.0,
+        scenery=scenery(learner.cfg.env.arena, _piste(learner)),
+    )
     return write_video(frames, path, 1.0 / learner.env.dt)
 
 
@@ -183,8 +222,14 @@ def _piste(learner):
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """This evaluator's flags (its own group of ``python -m jaxmotion.eval``'s)."""
     g = p.add_argument_group("two-player runs")
-    g.add_argument("--against", type=Path, nargs="+", default=(), metavar="RUN",
-                   help="opponent run folders (default: the run plays itself)")
+    g.add_argument(
+        "--against",
+        type=Path,
+        nargs="+",
+        default=(),
+        metavar="RUN",
+        help="opponent run folders (default: the run plays itself)",
+    )
     g.add_argument("--bouts", type=int, default=32, help="bouts per opponent (even; default 32)")
 
 
@@ -201,8 +246,10 @@ def run(args, experiment: str, cfg, learner, ts) -> int:
                 print(f"error: {r} is a {ocfg.env.arena.sport} run, {args.run} a {sport} run", file=sys.stderr)
                 return 2
             if ocfg.env != cfg.env:
-                print(f"note: {r} was trained in another scene or with other rules; these bouts use "
-                      f"{args.run}'s, so A vs B and B vs A are antisymmetric only within one scene")
+                print(
+                    f"note: {r} was trained in another scene or with other rules; these bouts use "
+                    f"{args.run}'s, so A vs B and B vs A are antisymmetric only within one scene"
+                )
             opponents.append((str(r), (olearner, ots)))
     samples = int(ts.iteration) * cfg.samples_per_iteration
     print(f"{experiment}: {samples:,} samples, {sport}, {args.bouts} bouts per opponent (sides swapped in pairs)")
@@ -237,22 +284,37 @@ def write_bout_html(learner, ro: dict, path: Path, bout: int = 0) -> Path:
     pos, quat = (np.asarray(x) for x in env.poses_of(jnp.asarray(ro["qpos"][:n, bout])))
     col = {b: tuple(float(x) for x in PLAYER_RGBA[0].split()) for b in range(ch.num_bodies)}
     legend = {"player 0": PLAYER_RGBA[0].split(), "player 1": PLAYER_RGBA[1].split()}
-    return write_html(path, ch.body_names, ch.parents, pos[:, 0], quat[:, 0], pos[:, 1], quat[:, 1],
-                      1.0 / env.dt, character_geoms(ch.sword_shield, col),
-                      title=f"jaxmotion bout ({learner.cfg.env.arena.sport})",
-                      legend={k: [float(x) for x in v] for k, v in legend.items()})
+    return write_html(
+        path,
+        ch.body_names,
+        ch.parents,
+        pos[:, 0],
+        quat[:, 0],
+        pos[:, 1],
+        quat[:, 1],
+        1.0 / env.dt,
+        character_geoms(ch.sword_shield, col),
+        title=f"jaxmotion bout ({learner.cfg.env.arena.sport})",
+        legend={k: [float(x) for x in v] for k, v in legend.items()},
+    )
 
 
 def print_summary(name: str, res: dict, sport: str) -> None:
     lo, hi = res["win_rate_ci95"]
-    line = (f"  {name}: {res['wins']}/{res['draws']}/{res['losses']} win/draw/loss of {res['bouts']} "
-            f"(win rate {res['win_rate']:.2f}, 95% [{lo:.2f}, {hi:.2f}]), bouts {res['bout_length_s_mean']:.1f} s")
+    line = (
+        f"  {name}: {res['wins']}/{res['draws']}/{res['losses']} win/draw/loss of {res['bouts']} "
+        f"(win rate {res['win_rate']:.2f}, 95% [{lo:.2f}, {hi:.2f}]), bouts {res['bout_length_s_mean']:.1f} s"
+    )
     if sport == "boxing":
         a, b = res["damage_diff_ci95"]
-        line += (f", damage diff {res['damage_diff_mean']:+.1f} N [{a:+.1f}, {b:+.1f}], hits {res['hits']['self']}"
-                 f"/{res['hits']['opponent']}, {res['bouts_with_damage']} bouts with damage")
+        line += (
+            f", damage diff {res['damage_diff_mean']:+.1f} N [{a:+.1f}, {b:+.1f}], hits {res['hits']['self']}"
+            f"/{res['hits']['opponent']}, {res['bouts_with_damage']} bouts with damage"
+        )
     else:
         line += f", touches {res['touches']['self']}/{res['touches']['opponent']}"
-    line += (f", falls {res['falls']['self']}/{res['falls']['opponent']}, penalties "
-             f"{res['penalties']['self']}/{res['penalties']['opponent']} (self/opponent)")
+    line += (
+        f", falls {res['falls']['self']}/{res['falls']['opponent']}, penalties "
+        f"{res['penalties']['self']}/{res['penalties']['opponent']} (self/opponent)"
+    )
     print(line)

@@ -31,7 +31,6 @@ action spaces take turns every S seconds on the same environments (paper Fig. 9)
 (``tracking.py``), two-player runs bout by bout (``bouts.py``: ``--against RUN``, ``--bouts N``).
 """
 
-
 from __future__ import annotations
 
 import argparse
@@ -84,23 +83,31 @@ def rollout_metrics(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
             errs_w.append(M.dtw_imitation_error(sp[:, links], rw[:, links])[0])
         m, s = M.mean_std(errs) if errs else (float("nan"), float("nan"))
         mw, sw = M.mean_std(errs_w) if errs_w else (float("nan"), float("nan"))
-        groups[gcfg.name] = {"dtw_error_m_mean": m, "dtw_error_m_std": s,
-                             "dtw_error_world_m_mean": mw, "dtw_error_world_m_std": sw}
+        groups[gcfg.name] = {
+            "dtw_error_m_mean": m,
+            "dtw_error_m_std": s,
+            "dtw_error_world_m_mean": mw,
+            "dtw_error_world_m_std": sw,
+        }
         if shown:
             # One pass of the clip against every frame played: the share of the reference shown.
             groups[gcfg.name]["coverage"] = M.coverage(np.concatenate(shown, 0), ref_group[:n_clip])
         if int(anchor) < 0:
             # Heading-frame groups drive the root: its height against the reference's shows a
             # held pose that DTW pairs with part of a cyclic clip.
-            played = [ro["pos"][:int(n), e, 0, 2] for e, n in enumerate(lengths)]
-            groups[gcfg.name]["root_height_m"] = M.height_stats(played, ref_pos[:int(lengths.max()), 0, 2])
+            played = [ro["pos"][: int(n), e, 0, 2] for e, n in enumerate(lengths)]
+            groups[gcfg.name]["root_height_m"] = M.height_stats(played, ref_pos[: int(lengths.max()), 0, 2])
     task = learner.env.task
     summary = {"name": learner.cfg.env.task.name, **task.summary(ro["info"], ro["stepped"])}
     for k, name in enumerate(task.reward_names):
         summary[f"reward_{name}"] = float(ro["task_reward"][..., k][ro["stepped"]].mean())
-    return {"groups": groups,
-            "episode_length_s": float(np.mean((lengths - 1) * learner.env.dt)),
-            "fall_rate": float(np.mean(ro["fell"])), "episodes": episodes, "task": summary}
+    return {
+        "groups": groups,
+        "episode_length_s": float(np.mean((lengths - 1) * learner.env.dt)),
+        "fall_rate": float(np.mean(ro["fell"])),
+        "episodes": episodes,
+        "task": summary,
+    }
 
 
 def switch_metrics(ro: dict[str, np.ndarray], dt: float, window_s: float = 1.0) -> dict:
@@ -111,11 +118,10 @@ def switch_metrics(ro: dict[str, np.ndarray], dt: float, window_s: float = 1.0) 
     w = max(int(round(window_s / dt)), 1)
     near = np.zeros_like(switch)
     for k in range(min(w, len(switch))):
-        near[k:] |= switch[:len(switch) - k]
+        near[k:] |= switch[: len(switch) - k]
     made = int((switch & stepped).sum())
     falls = int((ended_fell & near).sum())
-    return {"switches": made, "falls_after_switch": falls,
-            "falls_per_switch": falls / made if made else float("nan")}
+    return {"switches": made, "falls_after_switch": falls, "falls_per_switch": falls / made if made else float("nan")}
 
 
 def meta_weight_summary(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
@@ -132,8 +138,7 @@ def meta_weight_summary(learner: Learner, ro: dict[str, np.ndarray]) -> dict:
     return out
 
 
-def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None,
-             seed: int = 0) -> dict:
+def evaluate(learner: Learner, ts: TrainState, episodes: int = 4, steps: int | None = None, seed: int = 0) -> dict:
     """The metrics dict (see the module docstring) of ``episodes`` deterministic rollouts."""
     steps = learner.cfg.env.episode_steps if steps is None else steps
     return rollout_metrics(learner, rollout(learner, ts, episodes, steps, seed))
@@ -155,18 +160,30 @@ def _log_eval(learner: Learner, ts: TrainState, end) -> None:
     end.log(row)
 
 
-PERIODIC_EVAL = Hook(run=_log_eval, due=lambda cfg, end: bool(cfg.eval_every) and (
-    end.chunks % cfg.eval_every == 0 or end.done))
+PERIODIC_EVAL = Hook(
+    run=_log_eval, due=lambda cfg, end: bool(cfg.eval_every) and (end.chunks % cfg.eval_every == 0 or end.done)
+)
 """Deterministic evaluations during training (``TrainConfig.eval_every``), logged as ``eval/...``."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """This evaluator's flags (its own group of ``python -m jaxmotion.eval``'s)."""
     g = p.add_argument_group("imitation runs")
-    g.add_argument("--switch", type=Path, nargs="+", default=(), metavar="RUN",
-                   help="other run folders whose policies take turns with this one's (same observation and action sizes)")
-    g.add_argument("--switch-every", type=float, default=3.0, metavar="SECONDS",
-                   help="seconds between policy switches with --switch (default 3)")
+    g.add_argument(
+        "--switch",
+        type=Path,
+        nargs="+",
+        default=(),
+        metavar="RUN",
+        help="other run folders whose policies take turns with this one's (same observation and action sizes)",
+    )
+    g.add_argument(
+        "--switch-every",
+        type=float,
+        default=3.0,
+        metavar="SECONDS",
+        help="seconds between policy switches with --switch (default 3)",
+    )
 
 
 def run(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainState) -> int:
@@ -182,38 +199,65 @@ def run(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainStat
         actors = (learner,) + tuple(o[2] for o in others)  # each run acts through its own networks
         switch_steps = max(int(round(args.switch_every / learner.env.dt)), 1)
     # One rollout serves the metrics and the video / HTML replay (its episode 0).
-    ro = rollout(learner, policies, args.episodes or cfg.eval_episodes, cfg.env.episode_steps, args.seed,
-                 switch_steps=switch_steps, actors=actors)
+    ro = rollout(
+        learner,
+        policies,
+        args.episodes or cfg.eval_episodes,
+        cfg.env.episode_steps,
+        args.seed,
+        switch_steps=switch_steps,
+        actors=actors,
+    )
     res = rollout_metrics(learner, ro)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     if switch_steps:
-        res["switching"] = {"runs": [str(args.run)] + [str(r) for r in args.switch],
-                            "every_s": switch_steps * learner.env.dt, **switch_metrics(ro, learner.env.dt)}
+        res["switching"] = {
+            "runs": [str(args.run)] + [str(r) for r in args.switch],
+            "every_s": switch_steps * learner.env.dt,
+            **switch_metrics(ro, learner.env.dt),
+        }
         sw = res["switching"]
-        print(f"  switching every {sw['every_s']:.1f} s among {len(sw['runs'])} policies: {sw['switches']} switches, "
-              f"{sw['falls_after_switch']} falls within 1 s after one ({sw['falls_per_switch']:.2f} per switch)")
-    print(f"{experiment}: {res['samples']:,} samples, {res['episodes']} episodes, "
-          f"episode length {res['episode_length_s']:.2f} s, fall rate {res['fall_rate']:.2f}")
+        print(
+            f"  switching every {sw['every_s']:.1f} s among {len(sw['runs'])} policies: {sw['switches']} switches, "
+            f"{sw['falls_after_switch']} falls within 1 s after one ({sw['falls_per_switch']:.2f} per switch)"
+        )
+    print(
+        f"{experiment}: {res['samples']:,} samples, {res['episodes']} episodes, "
+        f"episode length {res['episode_length_s']:.2f} s, fall rate {res['fall_rate']:.2f}"
+    )
     for name, g in res["groups"].items():
-        print(f"  {name:>8}: DTW error {g['dtw_error_m_mean']:.3f} ± {g['dtw_error_m_std']:.3f} m (group frame), "
-              f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)")
+        print(
+            f"  {name:>8}: DTW error {g['dtw_error_m_mean']:.3f} ± {g['dtw_error_m_std']:.3f} m (group frame), "
+            f"{g['dtw_error_world_m_mean']:.3f} ± {g['dtw_error_world_m_std']:.3f} m (world)"
+        )
         if "coverage" in g:
             c = g["coverage"]
-            print(f"  {'':>8}  reference shown: {c['within']:.0%} of its frames within {c['radius_m']:.2f} m of a "
-                  f"simulated frame, nearest {c['error_m']:.3f} m on average")
+            print(
+                f"  {'':>8}  reference shown: {c['within']:.0%} of its frames within {c['radius_m']:.2f} m of a "
+                f"simulated frame, nearest {c['error_m']:.3f} m on average"
+            )
         if "root_height_m" in g:
             h = g["root_height_m"]
-            print(f"  {'':>8}  root height {h['sim_mean']:.2f} ± {h['sim_std']:.2f} m ({h['sim_min']:.2f}-"
-                  f"{h['sim_max']:.2f}), reference {h['ref_mean']:.2f} ± {h['ref_std']:.2f} m "
-                  f"({h['ref_min']:.2f}-{h['ref_max']:.2f})")
+            print(
+                f"  {'':>8}  root height {h['sim_mean']:.2f} ± {h['sim_std']:.2f} m ({h['sim_min']:.2f}-"
+                f"{h['sim_max']:.2f}), reference {h['ref_mean']:.2f} ± {h['ref_std']:.2f} m "
+                f"({h['ref_min']:.2f}-{h['ref_max']:.2f})"
+            )
     if ro["meta_w"].shape[-1]:
         res["meta_weights"] = meta_weight_summary(learner, ro)
         mw = res["meta_weights"]
-        print(f"  meta weights w (meta: {learner.meta.run_dir}): " + ", ".join(
-            f"{g} {v:.2f}" for g, v in mw["group_mean"].items()) + f", all {mw['mean']:.2f}")
+        print(
+            f"  meta weights w (meta: {learner.meta.run_dir}): "
+            + ", ".join(f"{g} {v:.2f}" for g, v in mw["group_mean"].items())
+            + f", all {mw['mean']:.2f}"
+        )
     if len(res["task"]) > 1:
-        print(f"  task {res['task']['name']}: " + ", ".join(
-            f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in res["task"].items() if k != "name"))
+        print(
+            f"  task {res['task']['name']}: "
+            + ", ".join(
+                f"{k} {v:.3f}" if isinstance(v, float) else f"{k} {v}" for k, v in res["task"].items() if k != "name"
+            )
+        )
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
     names = res["switching"]["runs"] if switch_steps else ()  # ro["acting"] indexes these

@@ -117,9 +117,7 @@ def frame_error(sim_pos: np.ndarray, ref_pos: np.ndarray) -> tuple[float, np.nda
     """
     sim_pos, ref_pos = _check_positions(sim_pos, ref_pos)
     if sim_pos.shape[0] != ref_pos.shape[0]:
-        raise ValueError(
-            f"frame_error needs equal lengths, got {sim_pos.shape[0]} and {ref_pos.shape[0]}"
-        )
+        raise ValueError(f"frame_error needs equal lengths, got {sim_pos.shape[0]} and {ref_pos.shape[0]}")
     per_frame = np.linalg.norm(sim_pos - ref_pos, axis=-1).mean(axis=-1)
     return float(per_frame.mean()), per_frame
 
@@ -154,8 +152,14 @@ def height_stats(sim_z: Iterable[np.ndarray], ref_z: np.ndarray) -> dict[str, fl
         raise ValueError("height_stats needs at least one simulated and one reference frame")
     out = {}
     for name, z in (("sim", sim), ("ref", ref)):
-        out.update({f"{name}_mean": float(z.mean()), f"{name}_std": float(z.std()),
-                    f"{name}_min": float(z.min()), f"{name}_max": float(z.max())})
+        out.update(
+            {
+                f"{name}_mean": float(z.mean()),
+                f"{name}_std": float(z.std()),
+                f"{name}_min": float(z.min()),
+                f"{name}_max": float(z.max()),
+            }
+        )
     return out
 
 
@@ -175,8 +179,7 @@ def coverage(sim_pos: np.ndarray, ref_pos: np.ndarray, radius: float = 0.1) -> d
       "radius_m": radius}``.
     """
     nearest = link_distance_cost(sim_pos, ref_pos).min(axis=0)
-    return {"error_m": float(nearest.mean()), "within": float(np.mean(nearest <= radius)),
-            "radius_m": float(radius)}
+    return {"error_m": float(nearest.mean()), "within": float(np.mean(nearest <= radius)), "radius_m": float(radius)}
 
 
 def _check_cost(cost: np.ndarray) -> np.ndarray:
@@ -195,7 +198,5 @@ def _check_positions(sim_pos: np.ndarray, ref_pos: np.ndarray) -> tuple[np.ndarr
         if arr.ndim != 3 or arr.shape[-1] != 3 or arr.shape[0] == 0 or arr.shape[1] == 0:
             raise ValueError(f"{name} must be [T, L, 3] with T, L > 0, got shape {arr.shape}")
     if sim_pos.shape[1] != ref_pos.shape[1]:
-        raise ValueError(
-            f"sim_pos has {sim_pos.shape[1]} links and ref_pos {ref_pos.shape[1]}; they must match"
-        )
+        raise ValueError(f"sim_pos has {sim_pos.shape[1]} links and ref_pos {ref_pos.shape[1]}; they must match")
     return sim_pos, ref_pos

@@ -22,8 +22,14 @@ def acting_policy(t: jax.Array, switch_steps: int, num_policies: int) -> jax.Arr
     return (t // switch_steps) % num_policies
 
 
-def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int = 0,
-                actors: tuple[Learner, ...] = ()):
+def _rollout_fn(
+    learner: Learner,
+    episodes: int,
+    steps: int,
+    deterministic: bool,
+    switch_steps: int = 0,
+    actors: tuple[Learner, ...] = (),
+):
     """The jitted rollout program ``(ts, key) -> arrays``, compiled once per learner and shape.
 
     ``ts`` may be a tuple of states whose policies take turns every ``switch_steps`` control
@@ -47,37 +53,67 @@ def _rollout_fn(learner: Learner, episodes: int, steps: int, deterministic: bool
             state, obs, alive = carry
             k, t = xs
             which = acting_policy(t, switch_steps, len(policies))
-            acts = [(actors[i] if actors else learner).act(p, obs, None if deterministic else k)[0]
-                    for i, p in enumerate(policies)]
+            acts = [
+                (actors[i] if actors else learner).act(p, obs, None if deterministic else k)[0]
+                for i, p in enumerate(policies)
+            ]
             action = jnp.stack(acts)[which]
             # Incremental learning: the weights w of the meta action (paper Figs. 7-8).
-            w = (learner.policy_weights(policies[0], obs) if len(policies) == 1
-                 else jnp.zeros((episodes, 0)))
+            w = learner.policy_weights(policies[0], obs) if len(policies) == 1 else jnp.zeros((episodes, 0))
             state, out = jax.vmap(env.step)(state, action)
             done = out.terminated | out.truncated
             # The recorded frame t + 1 is where step t + 1 begins: its acting policy is that step's.
             acting = jnp.full((episodes,), acting_policy(t + 1, switch_steps, len(policies)), jnp.int32)
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
-            rec = (state.hist.pos[:, -1], state.hist.quat[:, -1], env.character_qpos(state.data.qpos), alive & ~done,
-                   alive & out.terminated, out.info, alive, out.task_reward, w, markers(state), acting)
+            rec = (
+                state.hist.pos[:, -1],
+                state.hist.quat[:, -1],
+                env.character_qpos(state.data.qpos),
+                alive & ~done,
+                alive & out.terminated,
+                out.info,
+                alive,
+                out.task_reward,
+                w,
+                markers(state),
+                acting,
+            )
             return (state, out.obs, alive & ~done), rec
 
         alive0 = jnp.ones((episodes,), bool)
         _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, mk, acting) = jax.lax.scan(
-            step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps)))
+            step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps))
+        )
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         acting0 = jnp.full((episodes,), acting_policy(jnp.int32(0), switch_steps, len(policies)), jnp.int32)
-        return (first(state.hist.pos[:, -1], pos), first(state.hist.quat[:, -1], quat),
-                first(env.character_qpos(state.data.qpos), qpos), first(alive0, alive), fell.any(0), info, stepped, task_reward,
-                meta_w, jax.tree.map(first, markers(state), mk), first(acting0, acting))
+        return (
+            first(state.hist.pos[:, -1], pos),
+            first(state.hist.quat[:, -1], quat),
+            first(env.character_qpos(state.data.qpos), qpos),
+            first(alive0, alive),
+            fell.any(0),
+            info,
+            stepped,
+            task_reward,
+            meta_w,
+            jax.tree.map(first, markers(state), mk),
+            first(acting0, acting),
+        )
 
     cache[sig] = run
     return run
 
 
-def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes: int, steps: int, seed: int = 0,
-            deterministic: bool = True, switch_steps: int = 0,
-            actors: tuple[Learner, ...] = ()) -> dict[str, np.ndarray]:
+def rollout(
+    learner: Learner,
+    ts: TrainState | tuple[TrainState, ...],
+    episodes: int,
+    steps: int,
+    seed: int = 0,
+    deterministic: bool = True,
+    switch_steps: int = 0,
+    actors: tuple[Learner, ...] = (),
+) -> dict[str, np.ndarray]:
     """Runs ``episodes`` environments for ``steps`` control steps with the policy's mean action.
 
     With a tuple of states and ``switch_steps`` > 0, their policies take turns every
@@ -94,12 +130,30 @@ def rollout(learner: Learner, ts: TrainState | tuple[TrainState, ...], episodes:
     [T+1, E] int: the index (in ``ts``) of the policy that chooses the action at each recorded
     state (the last: the one whose turn it would be; all zeros without switching).
     """
-    run = _rollout_fn(learner, episodes, steps, deterministic, switch_steps if isinstance(ts, tuple) else 0,
-                      tuple(actors) if isinstance(ts, tuple) else ())
+    run = _rollout_fn(
+        learner,
+        episodes,
+        steps,
+        deterministic,
+        switch_steps if isinstance(ts, tuple) else 0,
+        tuple(actors) if isinstance(ts, tuple) else (),
+    )
     pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, markers, acting = jax.device_get(
-        run(ts, jax.random.PRNGKey(seed)))
+        run(ts, jax.random.PRNGKey(seed))
+    )
     if isinstance(ts, tuple) and switch_steps:
         t = np.arange(steps)
         info = dict(info, switch=np.broadcast_to(((t % switch_steps) == 0) & (t > 0), (episodes, steps)).T)
-    return {"pos": pos, "quat": quat, "qpos": qpos, "alive": alive, "fell": fell, "info": info,
-            "stepped": stepped, "task_reward": task_reward, "meta_w": meta_w, "markers": markers, "acting": acting}
+    return {
+        "pos": pos,
+        "quat": quat,
+        "qpos": qpos,
+        "alive": alive,
+        "fell": fell,
+        "info": info,
+        "stepped": stepped,
+        "task_reward": task_reward,
+        "meta_w": meta_w,
+        "markers": markers,
+        "acting": acting,
+    }

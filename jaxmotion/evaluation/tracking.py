@@ -42,8 +42,9 @@ def eval_env(learner, lib: MotionLib | None = None) -> HumanoidEnv:
     cfg = learner.cfg.env
     lib = learner.env.init_lib if lib is None else lib
     longest = int(np.max(np.asarray(lib.clip_len)))
-    task = dataclasses.replace(cfg.task, track=dataclasses.replace(
-        cfg.task.track, termination="mean", termination_distance=FAIL_MEAN_M))
+    task = dataclasses.replace(
+        cfg.task, track=dataclasses.replace(cfg.task.track, termination="mean", termination_distance=FAIL_MEAN_M)
+    )
     cfg = dataclasses.replace(cfg, task=task, early_termination=False, episode_steps=longest + 1)
     return HumanoidEnv(cfg, motion_libs=learner.env.motion_libs, init_lib=lib, physics=learner.env.physics)
 
@@ -86,8 +87,9 @@ def _rollout_program(learner, env: HumanoidEnv):
             return _run(ts)
 
     def _run(ts):
-        state, obs = jax.vmap(env.reset_at)(jax.random.split(jax.random.PRNGKey(0), C),
-                                            jnp.arange(C, dtype=jnp.int32), jnp.zeros(C))
+        state, obs = jax.vmap(env.reset_at)(
+            jax.random.split(jax.random.PRNGKey(0), C), jnp.arange(C, dtype=jnp.int32), jnp.zeros(C)
+        )
         ref_of = jax.vmap(lambda g: env.task.reference(g, 0.0))
         ref_qpos = jax.vmap(lambda g: _ref_qpos(env, g))
 
@@ -97,27 +99,47 @@ def _rollout_program(learner, env: HumanoidEnv):
             state, out = jax.vmap(env.step)(state, action)
             # An episode that ended here was reset: its frame is not recorded (the failure is).
             keep = alive & ~(out.terminated | out.truncated)
-            rec = (state.hist.pos[:, -1], ref_of(state.goal).pos, keep, alive & out.terminated, state.data.qpos,
-                   ref_qpos(state.goal))
+            rec = (
+                state.hist.pos[:, -1],
+                ref_of(state.goal).pos,
+                keep,
+                alive & out.terminated,
+                state.data.qpos,
+                ref_qpos(state.goal),
+            )
             return (state, out.obs, keep), rec
 
         alive0 = jnp.ones((C,), bool)
         ref0 = ref_of(state.goal)
         _, (sim, ref, played, failed, qpos, rq) = jax.lax.scan(step, (state, obs, alive0), None, length=T)
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
-        return (first(state.hist.pos[:, -1], sim), first(ref0.pos, ref), first(alive0, played), failed.any(0),
-                first(state.data.qpos, qpos), first(ref_qpos(state.goal), rq))
+        return (
+            first(state.hist.pos[:, -1], sim),
+            first(ref0.pos, ref),
+            first(alive0, played),
+            failed.any(0),
+            first(state.data.qpos, qpos),
+            first(ref_qpos(state.goal), rq),
+        )
 
     def program(ts, clips: MotionLib | None = None):
         sim, ref, played, failed, qpos, rq = jax.device_get(run(ts, lib if clips is None else clips))
-        return {"sim": sim, "ref": ref, "played": played, "failed": failed, "frames": frames, "qpos": qpos,
-                "ref_qpos": rq}
+        return {
+            "sim": sim,
+            "ref": ref,
+            "played": played,
+            "failed": failed,
+            "frames": frames,
+            "qpos": qpos,
+            "ref_qpos": rq,
+        }
 
     return program
 
 
 def _ref_qpos(env, goal):
     from jaxmotion.motion.motionlib import qpos_qvel, sample
+
     return qpos_qvel(sample(env.init_lib, goal.clip, goal.time))[0]
 
 
@@ -141,8 +163,16 @@ def summarize(ro: dict[str, np.ndarray], paths: Sequence[str]) -> dict:
         success = not bool(ro["failed"][c])
         mean_err = np.linalg.norm(sim - ref, axis=-1).mean(-1)
         ok25 += int(success and bool((mean_err <= 0.25).all()))
-        clips.append({"path": path, "frames": int(ro["frames"][c]), "played": n, "success": success,
-                      "max_mean_error_m": float(mean_err.max()), **clip_metrics(sim, ref)})
+        clips.append(
+            {
+                "path": path,
+                "frames": int(ro["frames"][c]),
+                "played": n,
+                "success": success,
+                "max_mean_error_m": float(mean_err.max()),
+                **clip_metrics(sim, ref),
+            }
+        )
         if success:
             pooled["sim"].append(sim)
             pooled["ref"].append(ref)
@@ -152,26 +182,34 @@ def summarize(ro: dict[str, np.ndarray], paths: Sequence[str]) -> dict:
         # Frame-weighted over the successful clips (differences taken within each clip).
         keys = ("g_mpjpe_mm", "mpjpe_mm", "acc_mm", "vel_mm")
         per = [clip_metrics(s, r) for s, r in zip(pooled["sim"], pooled["ref"])]
-        w = {k: np.asarray([max(len(s) - d, 0) for s in pooled["sim"]], float)
-             for k, d in zip(keys, (0, 0, 2, 1))}
+        w = {k: np.asarray([max(len(s) - d, 0) for s in pooled["sim"]], float) for k, d in zip(keys, (0, 0, 2, 1))}
         overall = {k: float(np.nansum([p[k] * wk for p, wk in zip(per, w[k])]) / max(w[k].sum(), 1.0)) for k in keys}
     succ = sum(c["success"] for c in clips)
-    return {"clips_total": n, "successes": int(succ), "success_rate": succ / n if n else float("nan"),
-            "success_rate_0.25": ok25 / n if n else float("nan"), **overall, "clips": clips}
+    return {
+        "clips_total": n,
+        "successes": int(succ),
+        "success_rate": succ / n if n else float("nan"),
+        "success_rate_0.25": ok25 / n if n else float("nan"),
+        **overall,
+        "clips": clips,
+    }
 
 
 def _load(paths, character, drop_props: bool) -> list:
     from jaxmotion.motion.clip import drop_sword_shield
+
     if drop_props and not character.sword_shield:
         return [drop_sword_shield(c) for c in load_clips(paths, None)]
     return load_clips(paths, character)
 
 
-def load_eval_clips(paths: Sequence[str | Path], character, drop_props: bool = False
-                    ) -> tuple[list, list[str], list[dict]]:
+def load_eval_clips(
+    paths: Sequence[str | Path], character, drop_props: bool = False
+) -> tuple[list, list[str], list[dict]]:
     """The clips at ``paths`` (files or folders) one by one: (clips, their paths, errors).
     ``drop_props``: sword-and-shield clips onto the 15-body humanoid (``clip.drop_sword_shield``)."""
     from jaxmotion.motion.loaders import find_motion_files
+
     good, names, errors = [], [], []
     for p in paths:
         try:
@@ -191,19 +229,27 @@ def load_eval_clips(paths: Sequence[str | Path], character, drop_props: bool = F
 def clean_reference(env: HumanoidEnv, lib: MotionLib, steps: int) -> np.ndarray:
     """Body positions [steps+1, C, nb, 3] of every clip of ``lib`` at the control times 0, dt, ..."""
     from jaxmotion.motion.motionlib import qpos_qvel, sample
+
     t = jnp.arange(steps + 1, dtype=jnp.float32)[:, None] * env.dt
     c = jnp.arange(lib.num_clips, dtype=jnp.int32)[None, :]
     ms = sample(lib, jnp.broadcast_to(c, (steps + 1, lib.num_clips)), jnp.broadcast_to(t, (steps + 1, lib.num_clips)))
     return np.asarray(jax.jit(lambda m: env.frames_of(*qpos_qvel(m)).pos)(ms))
 
 
-def evaluate_clips(learner, ts, paths: Sequence[str | Path] | None = None, noise: float = 0.0,
-                   seed: int = 0, clips: Sequence | None = None) -> tuple[dict, dict | None]:
+def evaluate_clips(
+    learner,
+    ts,
+    paths: Sequence[str | Path] | None = None,
+    noise: float = 0.0,
+    seed: int = 0,
+    clips: Sequence | None = None,
+) -> tuple[dict, dict | None]:
     """(metrics, rollout) of the tracker on ``clips``, the clips at ``paths``, or its own.
 
     With ``noise`` > 0 the tracker follows perturbed copies (``motion/noise.py``, one seed per
     clip from ``seed``) and is scored against the clean clips."""
     from jaxmotion.motion.noise import perturb_clip
+
     errors: list[dict] = []
     if paths:
         clips, names, errors = load_eval_clips(paths, learner.env.character, learner.cfg.env.drop_props)
@@ -253,8 +299,9 @@ def mines_after(iteration: int, cfg) -> bool:
 
 def _mine(learner, ts, end):
     ts, hard = hard_negative_update(learner, ts, end.run_dir)
-    end.say(f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of "
-            f"{learner.env.init_lib.num_clips} clips failed")
+    end.say(
+        f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of {learner.env.init_lib.num_clips} clips failed"
+    )
     return ts
 
 
@@ -283,9 +330,13 @@ def hard_negative_update(learner, ts, run_dir: Path | None = None):
     ts = ts.replace(clip_fails=put(fails, ts.clip_fails), clip_weights=put(w, ts.clip_weights))
     hard = [c["path"] for c, f in zip(res["clips"], failed) if f]
     if run_dir is not None:
-        doc = {"iteration": int(ts.iteration), "failed": hard, "success_rate": res["success_rate"],
-               "cumulative_failures": {c["path"]: int(n) for c, n in zip(res["clips"], fails)},
-               "reset_probability": {c["path"]: float(p) for c, p in zip(res["clips"], w)}}
+        doc = {
+            "iteration": int(ts.iteration),
+            "failed": hard,
+            "success_rate": res["success_rate"],
+            "cumulative_failures": {c["path"]: int(n) for c, n in zip(res["clips"], fails)},
+            "reset_probability": {c["path"]: float(p) for c, p in zip(res["clips"], w)},
+        }
         tmp = Path(run_dir) / (HARD_FILE + ".tmp")
         tmp.write_text(json.dumps(doc, indent=2))
         tmp.replace(Path(run_dir) / HARD_FILE)
@@ -300,19 +351,39 @@ def write_track_html(learner, ro: dict, path, clip: int = 0):
     n = int(np.asarray(ro["played"])[:, clip].sum())
     sp, sq = (np.asarray(x) for x in env.poses_of(jnp.asarray(ro["qpos"][:n, clip])))
     rp, rq = (np.asarray(x) for x in env.poses_of(jnp.asarray(ro["ref_qpos"][:n, clip])))
-    return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / env.dt,
-                      character_geoms(ch.sword_shield, learner_group_colors(learner)),
-                      title="jaxmotion tracker (ghost: the reference clip)")
+    return write_html(
+        path,
+        ch.body_names,
+        ch.parents,
+        sp,
+        sq,
+        rp,
+        rq,
+        1.0 / env.dt,
+        character_geoms(ch.sword_shield, learner_group_colors(learner)),
+        title="jaxmotion tracker (ghost: the reference clip)",
+    )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """This evaluator's flags (its own group of ``python -m jaxmotion.eval``'s)."""
     g = p.add_argument_group("tracker runs")
-    g.add_argument("--clips", type=Path, nargs="+", default=None, metavar="PATH",
-                   help="clip files or folders to track (default: the run's own clips)")
-    g.add_argument("--noise", type=float, default=0.0, metavar="LEVEL",
-                   help="follow clips perturbed like a video pose estimate (1: the defaults of "
-                        "motion/noise.PoseNoise), scored against the clean clips")
+    g.add_argument(
+        "--clips",
+        type=Path,
+        nargs="+",
+        default=None,
+        metavar="PATH",
+        help="clip files or folders to track (default: the run's own clips)",
+    )
+    g.add_argument(
+        "--noise",
+        type=float,
+        default=0.0,
+        metavar="LEVEL",
+        help="follow clips perturbed like a video pose estimate (1: the defaults of "
+        "motion/noise.PoseNoise), scored against the clean clips",
+    )
 
 
 def run(args, experiment: str, cfg, learner, ts) -> int:
@@ -320,23 +391,32 @@ def run(args, experiment: str, cfg, learner, ts) -> int:
     res, ro = evaluate_clips(learner, ts, args.clips, noise=args.noise, seed=args.seed)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     noisy = f" (inputs perturbed at noise level {args.noise:g})" if args.noise else ""
-    print(f"{experiment}: {res['samples']:,} samples, {res['successes']}/{res['clips_total']} clips tracked{noisy} "
-          f"(mean body error <= 0.5 m throughout), {res.get('success_rate_0.25', float('nan')):.2f} at 0.25 m")
+    print(
+        f"{experiment}: {res['samples']:,} samples, {res['successes']}/{res['clips_total']} clips tracked{noisy} "
+        f"(mean body error <= 0.5 m throughout), {res.get('success_rate_0.25', float('nan')):.2f} at 0.25 m"
+    )
     if res["clips"]:
-        print(f"  on successful clips: g-MPJPE {res['g_mpjpe_mm']:.1f} mm, MPJPE {res['mpjpe_mm']:.1f} mm, "
-              f"acc {res['acc_mm']:.2f} mm/frame^2, vel {res['vel_mm']:.2f} mm/frame")
+        print(
+            f"  on successful clips: g-MPJPE {res['g_mpjpe_mm']:.1f} mm, MPJPE {res['mpjpe_mm']:.1f} mm, "
+            f"acc {res['acc_mm']:.2f} mm/frame^2, vel {res['vel_mm']:.2f} mm/frame"
+        )
         print(f"  {'clip':<60} {'frames':>6} {'ok':>3} {'g-MPJPE':>8} {'MPJPE':>7}")
         for c in res["clips"]:
-            print(f"  {Path(c['path']).name[:60]:<60} {c['frames']:>6} {'yes' if c['success'] else 'no':>3} "
-                  f"{c['g_mpjpe_mm']:>8.1f} {c['mpjpe_mm']:>7.1f}")
+            print(
+                f"  {Path(c['path']).name[:60]:<60} {c['frames']:>6} {'yes' if c['success'] else 'no':>3} "
+                f"{c['g_mpjpe_mm']:>8.1f} {c['mpjpe_mm']:>7.1f}"
+            )
     for e in res["errors"]:
         print(f"  cannot use {e['path']}: {e['error']}", file=sys.stderr)
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
     if args.video and ro is not None:
         n = int(ro["played"][:, 0].sum())
-        frames = iter_frames(ro["qpos"][:n, 0].astype(np.float64), ro["ref_qpos"][:n, 0].astype(np.float64),
-                             learner_group_colors(learner))
+        frames = iter_frames(
+            ro["qpos"][:n, 0].astype(np.float64),
+            ro["ref_qpos"][:n, 0].astype(np.float64),
+            learner_group_colors(learner),
+        )
         print(f"video: {write_video(frames, args.video, 1.0 / learner.env.dt)} (clip 0, its reference as the ghost)")
     if args.html and ro is not None:
         print(f"html: {write_track_html(learner, ro, args.html)} (clip 0, its reference as the ghost)")

@@ -26,9 +26,15 @@ def _expand(paths: list[str], errors: list[dict]) -> list[Path]:
 
 
 def _row(clip, path: Path) -> dict:
-    return {"path": str(path), "format": clip.format, "frames": clip.num_frames,
-            "fps": round(clip.fps, 6), "duration_s": round(clip.duration, 6),
-            "root_speed_mps": round(mean_root_speed(clip), 6), "fk_error_m": clip.fk_error_m}
+    return {
+        "path": str(path),
+        "format": clip.format,
+        "frames": clip.num_frames,
+        "fps": round(clip.fps, 6),
+        "duration_s": round(clip.duration, 6),
+        "root_speed_mps": round(mean_root_speed(clip), 6),
+        "fk_error_m": clip.fk_error_m,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,8 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     for err in errors:
         print(f"ERROR {err['path']}: {err['error']}")
     width = max([len(str(f)) for f in files] + [4])
-    header = (f"{'path':<{width}}  {'format':<20} {'frames':>6} {'fps':>8} {'dur_s':>7} "
-              f"{'speed_m/s':>9} {'fk_err_m':>9}")
+    header = f"{'path':<{width}}  {'format':<20} {'frames':>6} {'fps':>8} {'dur_s':>7} {'speed_m/s':>9} {'fk_err_m':>9}"
     print(header)
     for f in files:
         try:
@@ -59,8 +64,10 @@ def main(argv: list[str] | None = None) -> int:
             continue
         r = _row(clip, f)
         rows.append(r)
-        print(f"{r['path']:<{width}}  {r['format']:<20} {r['frames']:>6d} {r['fps']:>8.3f} "
-              f"{r['duration_s']:>7.2f} {r['root_speed_mps']:>9.3f} {r['fk_error_m']:>9.2e}")
+        print(
+            f"{r['path']:<{width}}  {r['format']:<20} {r['frames']:>6d} {r['fps']:>8.3f} "
+            f"{r['duration_s']:>7.2f} {r['root_speed_mps']:>9.3f} {r['fk_error_m']:>9.2e}"
+        )
     max_fk = max((r["fk_error_m"] for r in rows), default=float("nan"))
     print(f"{len(rows)} clips loaded, {len(errors)} errors, max fk error {max_fk:.2e} m")
     if args.json:

@@ -96,8 +96,10 @@ class Clip:
         return np.concatenate([self.root_lin_vel, w_local, self.dof_vel], axis=-1)
 
     def __repr__(self) -> str:
-        return (f"Clip({self.name!r}, format={self.format!r}, frames={self.num_frames}, "
-                f"fps={self.fps:g}, loop={self.loop}, sword_shield={self.sword_shield})")
+        return (
+            f"Clip({self.name!r}, format={self.format!r}, frames={self.num_frames}, "
+            f"fps={self.fps:g}, loop={self.loop}, sword_shield={self.sword_shield})"
+        )
 
 
 def mean_root_speed(clip: Clip) -> float:
@@ -159,9 +161,19 @@ def angular_velocity(q: np.ndarray, dt: float) -> np.ndarray:
     return w
 
 
-def build_clip(*, name: str, path: str, format: str, fps: float, loop: bool, sword_shield: bool,
-               root_pos: np.ndarray, root_quat: np.ndarray, dof_pos: np.ndarray,
-               fk_error_m: float = 0.0) -> Clip:
+def build_clip(
+    *,
+    name: str,
+    path: str,
+    format: str,
+    fps: float,
+    loop: bool,
+    sword_shield: bool,
+    root_pos: np.ndarray,
+    root_quat: np.ndarray,
+    dof_pos: np.ndarray,
+    fk_error_m: float = 0.0,
+) -> Clip:
     """Builds a ``Clip`` from root trajectory and hinge angles: MuJoCo FK plus finite differences.
 
     Args:
@@ -180,8 +192,10 @@ def build_clip(*, name: str, path: str, format: str, fps: float, loop: bool, swo
     root_quat = rot.quat_make_continuous(rot.quat_normalize(np.asarray(root_quat, np.float64)))
     T = root_pos.shape[0]
     if T < 2 or root_quat.shape != (T, 4) or root_pos.shape != (T, 3) or dof_pos.shape != (T, ch.num_dof):
-        raise ValueError(f"bad clip shapes: root_pos {root_pos.shape}, root_quat {root_quat.shape}, "
-                         f"dof_pos {dof_pos.shape} (need T >= 2 and {ch.num_dof} dofs)")
+        raise ValueError(
+            f"bad clip shapes: root_pos {root_pos.shape}, root_quat {root_quat.shape}, "
+            f"dof_pos {dof_pos.shape} (need T >= 2 and {ch.num_dof} dofs)"
+        )
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"bad fps {fps!r}")
     dt = 1.0 / fps
@@ -191,12 +205,24 @@ def build_clip(*, name: str, path: str, format: str, fps: float, loop: bool, swo
     body_ang_vel = angular_velocity(body_quat, dt)
     body_lin_vel = finite_diff(body_pos, dt)
     return Clip(
-        name=name, path=path, format=format, fps=float(fps), loop=bool(loop),
-        sword_shield=bool(sword_shield), root_pos=root_pos, root_quat=root_quat, dof_pos=dof_pos,
-        root_lin_vel=finite_diff(root_pos, dt), root_ang_vel=angular_velocity(root_quat, dt),
-        dof_vel=finite_diff(np.unwrap(dof_pos, axis=0), dt), body_pos=body_pos,
-        body_quat=body_quat, body_lin_vel=body_lin_vel, body_ang_vel=body_ang_vel,
-        fk_error_m=float(fk_error_m))
+        name=name,
+        path=path,
+        format=format,
+        fps=float(fps),
+        loop=bool(loop),
+        sword_shield=bool(sword_shield),
+        root_pos=root_pos,
+        root_quat=root_quat,
+        dof_pos=dof_pos,
+        root_lin_vel=finite_diff(root_pos, dt),
+        root_ang_vel=angular_velocity(root_quat, dt),
+        dof_vel=finite_diff(np.unwrap(dof_pos, axis=0), dt),
+        body_pos=body_pos,
+        body_quat=body_quat,
+        body_lin_vel=body_lin_vel,
+        body_ang_vel=body_ang_vel,
+        fk_error_m=float(fk_error_m),
+    )
 
 
 def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
@@ -230,15 +256,32 @@ def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
     if idx.size < 2:
         raise ValueError(f"frames {list(ranges)} select {idx.size} frame; a clip needs at least 2")
     spec = ",".join(f"{a}:{'' if b is None else b}" for a, b in ranges)
-    return build_clip(name=f"{clip.name}[{spec}]", path=clip.path, format=clip.format, fps=clip.fps,
-                      loop=False, sword_shield=clip.sword_shield, root_pos=np.concatenate(root),
-                      root_quat=clip.root_quat[idx], dof_pos=clip.dof_pos[idx],
-                      fk_error_m=clip.fk_error_m)
+    return build_clip(
+        name=f"{clip.name}[{spec}]",
+        path=clip.path,
+        format=clip.format,
+        fps=clip.fps,
+        loop=False,
+        sword_shield=clip.sword_shield,
+        root_pos=np.concatenate(root),
+        root_quat=clip.root_quat[idx],
+        dof_pos=clip.dof_pos[idx],
+        fk_error_m=clip.fk_error_m,
+    )
 
 
-def make_test_clip(num_frames: int = 31, fps: float = 30.0, *, root_vel=(1.0, 0.0, 0.0),
-                   root_height: float = 0.9, yaw_rate: float = 0.0, dof_pos=None,
-                   loop: bool = False, sword_shield: bool = False, name: str = "test") -> Clip:
+def make_test_clip(
+    num_frames: int = 31,
+    fps: float = 30.0,
+    *,
+    root_vel=(1.0, 0.0, 0.0),
+    root_height: float = 0.9,
+    yaw_rate: float = 0.0,
+    dof_pos=None,
+    loop: bool = False,
+    sword_shield: bool = False,
+    name: str = "test",
+) -> Clip:
     """A synthetic clip with hand-known values: a root moving at constant velocity.
 
     Args:
@@ -261,9 +304,17 @@ def make_test_clip(num_frames: int = 31, fps: float = 30.0, *, root_vel=(1.0, 0.
     if dof_pos is None:
         dof_pos = np.zeros((num_frames, n_dof))
     dof_pos = np.broadcast_to(np.asarray(dof_pos, np.float64), (num_frames, n_dof))
-    return build_clip(name=name, path="", format="generated", fps=fps, loop=loop,
-                      sword_shield=sword_shield, root_pos=root_pos, root_quat=root_quat,
-                      dof_pos=dof_pos)
+    return build_clip(
+        name=name,
+        path="",
+        format="generated",
+        fps=fps,
+        loop=loop,
+        sword_shield=sword_shield,
+        root_pos=root_pos,
+        root_quat=root_quat,
+        dof_pos=dof_pos,
+    )
 
 
 def drop_sword_shield(clip: Clip) -> Clip:
@@ -275,6 +326,14 @@ def drop_sword_shield(clip: Clip) -> Clip:
         return clip
     names15 = set(character(False).joint_names)
     keep = [i for i, n in enumerate(character(True).joint_names) if n in names15]
-    return build_clip(name=clip.name, path=clip.path, format=clip.format, fps=clip.fps, loop=clip.loop,
-                      sword_shield=False, root_pos=clip.root_pos, root_quat=clip.root_quat,
-                      dof_pos=clip.dof_pos[:, keep])
+    return build_clip(
+        name=clip.name,
+        path=clip.path,
+        format=clip.format,
+        fps=clip.fps,
+        loop=clip.loop,
+        sword_shield=False,
+        root_pos=clip.root_pos,
+        root_quat=clip.root_quat,
+        dof_pos=clip.dof_pos[:, keep],
+    )

@@ -55,6 +55,7 @@ def euler_from_quat(q: np.ndarray, axes: Sequence[int] = (0, 1, 2)) -> np.ndarra
     if sorted(axes) != [0, 1, 2]:
         raise ValueError(f"three distinct hinge axes are needed, got {tuple(axes)}")
     from scipy.spatial.transform import Rotation
+
     flat = np.asarray(q, np.float64).reshape(-1, 4)[:, [1, 2, 3, 0]]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # gimbal lock: scipy sets the third angle to 0
@@ -144,8 +145,9 @@ def local_quats_to_dof(ch: Character, local_quat: np.ndarray, fit_ranges: bool =
     return dof
 
 
-def reference_body_pos(parents: Sequence[int], offsets: np.ndarray, root_pos: np.ndarray,
-                       local_quat: np.ndarray) -> np.ndarray:
+def reference_body_pos(
+    parents: Sequence[int], offsets: np.ndarray, root_pos: np.ndarray, local_quat: np.ndarray
+) -> np.ndarray:
     """Body positions composed directly from local rotations along the parent chain (numpy).
 
     This is the independent check of MuJoCo FK (``Clip.fk_error_m``).

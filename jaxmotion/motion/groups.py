@@ -31,8 +31,7 @@ class BodyGroup:
 
 
 def _arms(ch: Character) -> tuple[str, ...]:
-    arm = ("right_upper_arm", "right_lower_arm", "right_hand",
-           "left_upper_arm", "left_lower_arm", "left_hand")
+    arm = ("right_upper_arm", "right_lower_arm", "right_hand", "left_upper_arm", "left_lower_arm", "left_hand")
     extra = ("sword", "shield") if ch.sword_shield else ()
     return _in_body_order(ch, arm + extra)
 
@@ -76,8 +75,7 @@ def default_groups(character: Character) -> dict[str, BodyGroup]:
 
 def _check_body(ch: Character, group: str, name: Any, role: str) -> None:
     if not isinstance(name, str) or name not in ch.body_names:
-        raise ValueError(f"body group {group!r}: unknown {role} {name!r}; valid bodies are "
-                         f"{list(ch.body_names)}")
+        raise ValueError(f"body group {group!r}: unknown {role} {name!r}; valid bodies are {list(ch.body_names)}")
 
 
 def resolve_group(spec: str | BodyGroup | Mapping[str, Any], character: Character) -> BodyGroup:
@@ -105,8 +103,9 @@ def resolve_group(spec: str | BodyGroup | Mapping[str, Any], character: Characte
     if isinstance(spec, Mapping):
         unknown = set(spec) - {"name", "links", "anchor"}
         if unknown or "links" not in spec:
-            raise ValueError(f"a body group mapping needs 'links' and may have 'name', 'anchor'; "
-                             f"got keys {sorted(spec)}")
+            raise ValueError(
+                f"a body group mapping needs 'links' and may have 'name', 'anchor'; got keys {sorted(spec)}"
+            )
         links = spec["links"]
         if isinstance(links, str):
             raise ValueError(f"body group links must be a list of body names, got {links!r}")
@@ -124,8 +123,7 @@ def resolve_group(spec: str | BodyGroup | Mapping[str, Any], character: Characte
     return BodyGroup(spec.name, tuple(spec.links), spec.anchor)
 
 
-def group_indices(group: str | BodyGroup | Mapping[str, Any],
-                  character: Character) -> tuple[np.ndarray, int]:
+def group_indices(group: str | BodyGroup | Mapping[str, Any], character: Character) -> tuple[np.ndarray, int]:
     """Body indices of a group's links and of its anchor.
 
     Args:

@@ -96,6 +96,15 @@ def level_feet(clip: Clip, planted: float = 0.1, iterations: int = 4, within_lim
         soles = sole_points(clip, qpos)
     lift = np.where(mask, -soles[:, :, 2].mean(1), 0.0)
     qpos[:, 2] += lift
-    return build_clip(name=clip.name, path=clip.path, format=clip.format, fps=clip.fps, loop=clip.loop,
-                      sword_shield=clip.sword_shield, root_pos=qpos[:, :3], root_quat=qpos[:, 3:7],
-                      dof_pos=qpos[:, 7:], fk_error_m=clip.fk_error_m)
+    return build_clip(
+        name=clip.name,
+        path=clip.path,
+        format=clip.format,
+        fps=clip.fps,
+        loop=clip.loop,
+        sword_shield=clip.sword_shield,
+        root_pos=qpos[:, :3],
+        root_quat=qpos[:, 3:7],
+        dof_pos=qpos[:, 7:],
+        fk_error_m=clip.fk_error_m,
+    )

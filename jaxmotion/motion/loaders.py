@@ -37,9 +37,18 @@ MOTION_SUFFIXES = (".json", ".txt", ".npy")
 
 # DeepMimic humanoid3d frame: dt, root pos(3), root rot(4), then these (name, width) in order.
 _DEEPMIMIC_LAYOUT = (
-    ("torso", 4), ("head", 4), ("right_thigh", 4), ("right_shin", 1), ("right_foot", 4),
-    ("right_upper_arm", 4), ("right_lower_arm", 1), ("left_thigh", 4), ("left_shin", 1),
-    ("left_foot", 4), ("left_upper_arm", 4), ("left_lower_arm", 1),
+    ("torso", 4),
+    ("head", 4),
+    ("right_thigh", 4),
+    ("right_shin", 1),
+    ("right_foot", 4),
+    ("right_upper_arm", 4),
+    ("right_lower_arm", 1),
+    ("left_thigh", 4),
+    ("left_shin", 1),
+    ("left_foot", 4),
+    ("left_upper_arm", 4),
+    ("left_lower_arm", 1),
 )
 _DEEPMIMIC_WIDTH = 8 + sum(w for _, w in _DEEPMIMIC_LAYOUT)  # 44
 # y-up -> z-up: +90 degrees about x, p' = (x, -z, y).
@@ -51,8 +60,10 @@ class MotionFileError(JaxmotionError, ValueError):
 
     @property
     def hint(self) -> str:
-        return (f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); point it at "
-                f"the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`.")
+        return (
+            f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); point it at "
+            f"the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`."
+        )
 
     def __init__(self, path: str | os.PathLike, problem: str):
         self.path = str(path)
@@ -74,6 +85,7 @@ class _Raw:
 
 
 # ----------------------------------------------------------------------------- validation
+
 
 def _first_bad_frame(a: np.ndarray) -> int:
     bad = ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
@@ -117,15 +129,16 @@ def _xyzw_to_wxyz(q: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- readers
 
+
 def _as_array(path, value, shape_tail: tuple[int, ...], field: str) -> np.ndarray:
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise MotionFileError(path, f"{field!r} is not a numeric array of shape [T, "
-                                    f"{', '.join(map(str, shape_tail))}]") from None
+        raise MotionFileError(
+            path, f"{field!r} is not a numeric array of shape [T, {', '.join(map(str, shape_tail))}]"
+        ) from None
     if a.ndim != 1 + len(shape_tail) or a.shape[1:] != shape_tail:
-        raise MotionFileError(path, f"{field!r} has shape {a.shape}, expected [T, "
-                                    f"{', '.join(map(str, shape_tail))}]")
+        raise MotionFileError(path, f"{field!r} has shape {a.shape}, expected [T, {', '.join(map(str, shape_tail))}]")
     return a
 
 
@@ -147,12 +160,16 @@ def _read_compositemotion(path, d: dict) -> _Raw:
         if old and "base_position" not in f:
             missing.insert(0, "base_position")
         if missing:
-            raise MotionFileError(path, f"missing body {missing[0]!r} in frame {t} "
-                                        f"(the character's bodies are {list(ch.body_names)})")
+            raise MotionFileError(
+                path, f"missing body {missing[0]!r} in frame {t} (the character's bodies are {list(ch.body_names)})"
+            )
         extra = sorted(set(f) - expected)
         if extra:
-            raise MotionFileError(path, f"unknown body {extra[0]!r} in frame {t}: wrong skeleton "
-                                        f"(the character's bodies are {list(ch.body_names)})")
+            raise MotionFileError(
+                path,
+                f"unknown body {extra[0]!r} in frame {t}: wrong skeleton "
+                f"(the character's bodies are {list(ch.body_names)})",
+            )
     if old:
         root_pos = _as_array(path, [f["base_position"] for f in frames], (3,), "base_position")
         root_q = _as_array(path, [f["pelvis"] for f in frames], (4,), "pelvis")
@@ -166,8 +183,7 @@ def _read_compositemotion(path, d: dict) -> _Raw:
     _check_finite(path, root_pos, "pelvis position" if not old else "base_position")
     quats = [root_q] + [_as_array(path, [f[b] for f in frames], (4,), b) for b in ch.body_names[1:]]
     local = np.stack([_unit_quats(path, q, b) for q, b in zip(quats, ch.body_names)], axis=1)
-    return _Raw("compositemotion_json", fps, False, False, root_pos, _xyzw_to_wxyz(local),
-                ch.body_offsets.copy())
+    return _Raw("compositemotion_json", fps, False, False, root_pos, _xyzw_to_wxyz(local), ch.body_offsets.copy())
 
 
 def _yup_to_zup_quat(q: np.ndarray) -> np.ndarray:
@@ -184,8 +200,11 @@ def _read_deepmimic(path, d: dict) -> _Raw:
     _check_frames(path, len(frames))
     widths = {len(f) if isinstance(f, list) else -1 for f in frames}
     if widths != {_DEEPMIMIC_WIDTH}:
-        raise MotionFileError(path, f"each frame must be a list of {_DEEPMIMIC_WIDTH} numbers "
-                                    f"(humanoid3d), got lengths {sorted(widths)}: wrong skeleton")
+        raise MotionFileError(
+            path,
+            f"each frame must be a list of {_DEEPMIMIC_WIDTH} numbers "
+            f"(humanoid3d), got lengths {sorted(widths)}: wrong skeleton",
+        )
     a = _as_array(path, frames, (_DEEPMIMIC_WIDTH,), "Frames")
     dts = a[:-1, 0]
     bad = np.argwhere(~np.isfinite(dts) | (dts <= 0))
@@ -202,7 +221,7 @@ def _read_deepmimic(path, d: dict) -> _Raw:
     col = 8
     for name, w in _DEEPMIMIC_LAYOUT:
         b = ch.body_index(name)
-        v = a[:, col:col + w]
+        v = a[:, col : col + w]
         if w == 4:
             local[:, b] = _yup_to_zup_quat(_unit_quats(path, v, name))
         else:  # A revolute angle about local z (y-up) is -theta about the z-up y axis.
@@ -214,15 +233,14 @@ def _read_deepmimic(path, d: dict) -> _Raw:
         fps = _check_fps(path, 1.0 / float(np.mean(dts)))
     else:  # Per-frame durations differ (humanoid3d_roll has one double-length frame): resample.
         fps = _check_fps(path, 1.0 / float(np.median(dts)))
-        root_pos, local = resample_uniform(np.concatenate([[0.0], np.cumsum(dts)]), root_pos,
-                                           local, fps)
+        root_pos, local = resample_uniform(np.concatenate([[0.0], np.cumsum(dts)]), root_pos, local, fps)
     loop = d.get("Loop", "none")
-    return _Raw("deepmimic_txt", fps, loop == "wrap", False, root_pos, local,
-                ch.body_offsets.copy())
+    return _Raw("deepmimic_txt", fps, loop == "wrap", False, root_pos, local, ch.body_offsets.copy())
 
 
-def resample_uniform(times: np.ndarray, root_pos: np.ndarray, local_quat: np.ndarray,
-                     fps: float) -> tuple[np.ndarray, np.ndarray]:
+def resample_uniform(
+    times: np.ndarray, root_pos: np.ndarray, local_quat: np.ndarray, fps: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Resamples frames at arbitrary increasing times onto the grid k / fps (lerp / slerp).
 
     Args:
@@ -275,22 +293,25 @@ def _read_poselib(path, character_hint: Character | None) -> _Raw:
     ch = _character(ss)
     if tuple(names) != ch.body_names or tuple(parents) != ch.parents:
         raise MotionFileError(
-            path, f"wrong skeleton: the file has {len(names)} nodes {names} with parents "
-                  f"{parents}, but the {'sword-shield ' if ss else ''}character has "
-                  f"{ch.num_bodies} bodies {list(ch.body_names)} with parents {list(ch.parents)}")
+            path,
+            f"wrong skeleton: the file has {len(names)} nodes {names} with parents "
+            f"{parents}, but the {'sword-shield ' if ss else ''}character has "
+            f"{ch.num_bodies} bodies {list(ch.body_names)} with parents {list(ch.parents)}",
+        )
     N = len(names)
-    rotation = _as_array(path, np.asarray(_npy_field(path, d, "rotation")).reshape(-1, N * 4),
-                         (N * 4,), "rotation").reshape(-1, N, 4)
+    rotation = _as_array(
+        path, np.asarray(_npy_field(path, d, "rotation")).reshape(-1, N * 4), (N * 4,), "rotation"
+    ).reshape(-1, N, 4)
     root_pos = _as_array(path, _npy_field(path, d, "root_translation"), (3,), "root_translation")
     _check_frames(path, rotation.shape[0])
     if root_pos.shape[0] != rotation.shape[0]:
-        raise MotionFileError(path, f"'root_translation' has {root_pos.shape[0]} frames but "
-                                    f"'rotation' has {rotation.shape[0]}")
+        raise MotionFileError(
+            path, f"'root_translation' has {root_pos.shape[0]} frames but 'rotation' has {rotation.shape[0]}"
+        )
     fps = _check_fps(path, d.get("fps"))
     _check_finite(path, root_pos, "root_translation")
     _check_finite(path, offsets, "local_translation")
-    local = np.stack([_unit_quats(path, rotation[:, b], f"rotation[{n}]") for b, n in enumerate(names)],
-                     axis=1)
+    local = np.stack([_unit_quats(path, rotation[:, b], f"rotation[{n}]") for b, n in enumerate(names)], axis=1)
     return _Raw("poselib_npy", fps, False, ss, root_pos, _xyzw_to_wxyz(local), offsets)
 
 
@@ -309,11 +330,20 @@ def _read_json(path) -> dict:
 
 # ----------------------------------------------------------------------------- conversion
 
+
 def _to_clip(path: Path, raw: _Raw, ch: Character) -> Clip:
     dof = local_quats_to_dof(ch, raw.local_quat)
-    clip = build_clip(name=path.stem, path=str(path), format=raw.format, fps=raw.fps, loop=raw.loop,
-                      sword_shield=ch.sword_shield, root_pos=raw.root_pos,
-                      root_quat=raw.local_quat[:, 0], dof_pos=dof)
+    clip = build_clip(
+        name=path.stem,
+        path=str(path),
+        format=raw.format,
+        fps=raw.fps,
+        loop=raw.loop,
+        sword_shield=ch.sword_shield,
+        root_pos=raw.root_pos,
+        root_quat=raw.local_quat[:, 0],
+        dof_pos=dof,
+    )
     ref = reference_body_pos(ch.parents, raw.offsets, raw.root_pos, raw.local_quat)
     err = float(np.linalg.norm(ref - clip.body_pos, axis=-1).max())
     return dataclasses.replace(clip, fk_error_m=err)
@@ -353,12 +383,14 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
             else:
                 raise MotionFileError(p, "unknown JSON motion layout (no 'frames' or 'Frames' key)")
         else:
-            raise MotionFileError(p, f"unsupported file type {suffix!r} (expected one of "
-                                     f"{', '.join(MOTION_SUFFIXES)})")
+            raise MotionFileError(p, f"unsupported file type {suffix!r} (expected one of {', '.join(MOTION_SUFFIXES)})")
         if character is not None and character.sword_shield != raw.sword_shield:
             n = 17 if raw.sword_shield else 15
-            raise MotionFileError(p, f"wrong skeleton: the file has the {n}-body skeleton, but a "
-                                     f"{character.num_bodies}-body character was requested")
+            raise MotionFileError(
+                p,
+                f"wrong skeleton: the file has the {n}-body skeleton, but a "
+                f"{character.num_bodies}-body character was requested",
+            )
         return _to_clip(p, raw, character or _character(raw.sword_shield))
     except MotionFileError:
         raise
@@ -425,8 +457,9 @@ def split_frame_ranges(spec: str | os.PathLike) -> tuple[str | os.PathLike, tupl
     return m["path"], tuple(ranges)
 
 
-def load_clips(paths: str | os.PathLike | Iterable[str | os.PathLike],
-               character: Character | None = None) -> list[Clip]:
+def load_clips(
+    paths: str | os.PathLike | Iterable[str | os.PathLike], character: Character | None = None
+) -> list[Clip]:
     """Loads files and folders (recursively, sorted) of motion files; see ``load_clip``.
 
     A file may name frame ranges, ``path[start:stop,...]`` (frame indices, Python slices): only

@@ -10,9 +10,9 @@ from jaxmotion.physics.character import Character
 
 def _swap_side(name: str) -> str:
     if name.startswith("left_"):
-        return "right_" + name[len("left_"):]
+        return "right_" + name[len("left_") :]
     if name.startswith("right_"):
-        return "left_" + name[len("right_"):]
+        return "left_" + name[len("right_") :]
     return name
 
 
@@ -50,13 +50,24 @@ def mirror_clip(clip: Clip) -> Clip:
         ValueError: for the sword-and-shield character, which is not left/right symmetric.
     """
     if clip.sword_shield:
-        raise ValueError(f"cannot mirror {clip.name!r}: the sword-and-shield character is not "
-                         "left/right symmetric (sword in the right hand, shield on the left arm)")
+        raise ValueError(
+            f"cannot mirror {clip.name!r}: the sword-and-shield character is not "
+            "left/right symmetric (sword in the right hand, shield on the left arm)"
+        )
     src, sign = mirror_dof_map(clip.character)
     root_pos = clip.root_pos * np.array([1.0, -1.0, 1.0])
     root_quat = clip.root_quat * np.array([1.0, -1.0, 1.0, -1.0])
     dof_pos = clip.dof_pos[:, src] * sign
-    name = clip.name[:-len("_mirror")] if clip.name.endswith("_mirror") else clip.name + "_mirror"
-    return build_clip(name=name, path=clip.path, format=clip.format, fps=clip.fps, loop=clip.loop,
-                      sword_shield=False, root_pos=root_pos, root_quat=root_quat, dof_pos=dof_pos,
-                      fk_error_m=clip.fk_error_m)
+    name = clip.name[: -len("_mirror")] if clip.name.endswith("_mirror") else clip.name + "_mirror"
+    return build_clip(
+        name=name,
+        path=clip.path,
+        format=clip.format,
+        fps=clip.fps,
+        loop=clip.loop,
+        sword_shield=False,
+        root_pos=root_pos,
+        root_quat=root_quat,
+        dof_pos=dof_pos,
+        fk_error_m=clip.fk_error_m,
+    )

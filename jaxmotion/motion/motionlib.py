@@ -19,8 +19,18 @@ from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import Clip
 from jaxmotion.physics.character import Character
 
-FRAME_FIELDS = ("root_pos", "root_quat", "root_lin_vel", "root_ang_vel", "dof_pos", "dof_vel",
-                "body_pos", "body_quat", "body_lin_vel", "body_ang_vel")
+FRAME_FIELDS = (
+    "root_pos",
+    "root_quat",
+    "root_lin_vel",
+    "root_ang_vel",
+    "dof_pos",
+    "dof_vel",
+    "body_pos",
+    "body_quat",
+    "body_lin_vel",
+    "body_ang_vel",
+)
 _QUAT_FIELDS = ("root_quat", "body_quat")
 _VEL_FIELDS = ("root_lin_vel", "root_ang_vel", "dof_vel", "body_lin_vel", "body_ang_vel")
 
@@ -125,8 +135,10 @@ class MotionLib:
             raise ValueError("MotionLib needs at least one clip")
         kinds = {c.sword_shield for c in clips}
         if len(kinds) > 1:
-            raise ValueError("clips mix the 15-body and the sword-shield character: "
-                             + ", ".join(f"{c.name} (sword_shield={c.sword_shield})" for c in clips))
+            raise ValueError(
+                "clips mix the 15-body and the sword-shield character: "
+                + ", ".join(f"{c.name} (sword_shield={c.sword_shield})" for c in clips)
+            )
         if weights is None:
             w = np.array([c.duration for c in clips], np.float64)
         else:
@@ -137,21 +149,27 @@ class MotionLib:
             raise ValueError(f"clip weights must be finite, >= 0 and not all 0, got {w.tolist()}")
         lens = np.array([c.num_frames for c in clips], np.int32)
         starts = np.concatenate([[0], np.cumsum(lens)[:-1]]).astype(np.int32)
-        frames = {f: jnp.asarray(np.concatenate([getattr(c, f) for c in clips]), jnp.float32)
-                  for f in FRAME_FIELDS}
+        frames = {f: jnp.asarray(np.concatenate([getattr(c, f) for c in clips]), jnp.float32) for f in FRAME_FIELDS}
         return cls(
-            **frames, clip_start=jnp.asarray(starts), clip_len=jnp.asarray(lens),
+            **frames,
+            clip_start=jnp.asarray(starts),
+            clip_len=jnp.asarray(lens),
             clip_fps=jnp.asarray([c.fps for c in clips], jnp.float32),
             clip_loop=jnp.asarray([c.loop for c in clips], bool),
             clip_weight=jnp.asarray(w / w.sum(), jnp.float32),
-            clip_names=tuple(c.name for c in clips), clip_paths=tuple(c.path for c in clips),
-            sword_shield=bool(clips[0].sword_shield))
+            clip_names=tuple(c.name for c in clips),
+            clip_paths=tuple(c.path for c in clips),
+            sword_shield=bool(clips[0].sword_shield),
+        )
 
 
-def load_motionlib(paths: str | os.PathLike | Iterable[str | os.PathLike],
-                   character: Character | None = None,
-                   weights: Sequence[float] | None = None, drop_props: bool = False,
-                   level: Sequence[str] = ()) -> MotionLib:
+def load_motionlib(
+    paths: str | os.PathLike | Iterable[str | os.PathLike],
+    character: Character | None = None,
+    weights: Sequence[float] | None = None,
+    drop_props: bool = False,
+    level: Sequence[str] = (),
+) -> MotionLib:
     """Loads files/folders (see ``loaders.load_clips``) into a ``MotionLib``. ``drop_props``: load
     sword-and-shield clips onto the 15-body humanoid (``clip.drop_sword_shield``). ``level``: clip
     names (file stems) or path endings whose frames with both feet planted are levelled
@@ -159,6 +177,7 @@ def load_motionlib(paths: str | os.PathLike | Iterable[str | os.PathLike],
     from jaxmotion.motion.clip import drop_sword_shield
     from jaxmotion.motion.level import level_feet
     from jaxmotion.motion.loaders import load_clips
+
     if drop_props and character is not None and not character.sword_shield:
         clips = [drop_sword_shield(c) for c in load_clips(paths, None)]
     else:
@@ -195,8 +214,9 @@ def _frame_pair(lib: MotionLib, clip: jax.Array, tc: jax.Array):
 _LIN_FIELDS = tuple(f for f in FRAME_FIELDS if f not in _QUAT_FIELDS)
 
 
-def _sample_clip_time(lib: MotionLib, clip: jax.Array, tc: jax.Array, vel_scale,
-                      pose_only: bool = False) -> MotionState:
+def _sample_clip_time(
+    lib: MotionLib, clip: jax.Array, tc: jax.Array, vel_scale, pose_only: bool = False
+) -> MotionState:
     """State at clip time ``tc`` (seconds of the clip itself); velocities times ``vel_scale``.
 
     All vector fields are gathered and blended as one packed [..., D] array and both quaternion
@@ -214,8 +234,9 @@ def _sample_clip_time(lib: MotionLib, clip: jax.Array, tc: jax.Array, vel_scale,
     lead = tc.shape
     tails = [getattr(lib, f).shape[1:] for f in lin_fields]
     sizes = [int(np.prod(s)) for s in tails]
-    x = jnp.concatenate([getattr(lib, f)[idx].reshape(lead + (2, n))
-                         for f, n in zip(lin_fields, sizes)], axis=-1)  # [..., 2, D]
+    x = jnp.concatenate(
+        [getattr(lib, f)[idx].reshape(lead + (2, n)) for f, n in zip(lin_fields, sizes)], axis=-1
+    )  # [..., 2, D]
     is_dof = np.concatenate([np.full(n, f == "dof_pos") for f, n in zip(lin_fields, sizes)])
     is_vel = np.concatenate([np.full(n, f in _VEL_FIELDS) for f, n in zip(lin_fields, sizes)])
     x0 = x[..., 0, :]
@@ -275,8 +296,15 @@ def sample_times(lib: MotionLib, rng: jax.Array, n: int) -> tuple[jax.Array, jax
     return clip, t
 
 
-def sample_windows(lib: MotionLib, rng: jax.Array, n: int, num_frames: int, dt: float,
-                   speed_range: tuple[float, float] = (1.0, 1.0), pose_only: bool = False) -> MotionState:
+def sample_windows(
+    lib: MotionLib,
+    rng: jax.Array,
+    n: int,
+    num_frames: int,
+    dt: float,
+    speed_range: tuple[float, float] = (1.0, 1.0),
+    pose_only: bool = False,
+) -> MotionState:
     """Random windows of consecutive reference states (e.g. discriminator inputs).
 
     Each window picks a clip (probability ``clip_weight``) and a speed ~ U(speed_range); frame k
@@ -305,8 +333,9 @@ def sample_windows(lib: MotionLib, rng: jax.Array, n: int, num_frames: int, dt: 
     start_max = jnp.where(lib.clip_loop[clip], dur, jnp.maximum(dur - span, 0.0))
     start = jax.random.uniform(k_start, (n,)) * start_max
     tc = start[:, None] + jnp.arange(num_frames, dtype=jnp.float32)[None, :] * (dt * speed[:, None])
-    return _sample_clip_time(lib, jnp.broadcast_to(clip[:, None], tc.shape), tc,
-                             jnp.broadcast_to(speed[:, None], tc.shape), pose_only)
+    return _sample_clip_time(
+        lib, jnp.broadcast_to(clip[:, None], tc.shape), tc, jnp.broadcast_to(speed[:, None], tc.shape), pose_only
+    )
 
 
 def qpos_of(state: MotionState) -> jax.Array:

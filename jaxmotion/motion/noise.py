@@ -58,7 +58,9 @@ def perturb_clip(clip: Clip, level: float, rng: np.random.Generator, noise: Pose
     depth = depth / np.linalg.norm(depth)
     lateral = np.cross([0.0, 0.0, 1.0], depth)
     n = _smooth_noise(rng, (T, 2), sigma)
-    root_pos = (clip.root_pos + level * (noise.root_depth_m * n[:, :1] * depth + noise.root_lateral_m * n[:, 1:] * lateral))
+    root_pos = clip.root_pos + level * (
+        noise.root_depth_m * n[:, :1] * depth + noise.root_lateral_m * n[:, 1:] * lateral
+    )
     root_pos[:, 2] += level * noise.vertical_m * rng.choice([-1.0, 1.0])
     dof = clip.dof_pos + level * np.deg2rad(noise.joint_deg) * _smooth_noise(rng, clip.dof_pos.shape, sigma)
     root_quat = clip.root_quat.copy()
@@ -66,5 +68,14 @@ def perturb_clip(clip: Clip, level: float, rng: np.random.Generator, noise: Pose
     dropped[0] = False
     for t in np.flatnonzero(dropped):  # in order, so runs of drops freeze on the last kept frame
         root_pos[t], root_quat[t], dof[t] = root_pos[t - 1], root_quat[t - 1], dof[t - 1]
-    return build_clip(name=clip.name, path=clip.path, format=clip.format, fps=clip.fps, loop=clip.loop,
-                      sword_shield=clip.sword_shield, root_pos=root_pos, root_quat=root_quat, dof_pos=dof)
+    return build_clip(
+        name=clip.name,
+        path=clip.path,
+        format=clip.format,
+        fps=clip.fps,
+        loop=clip.loop,
+        sword_shield=clip.sword_shield,
+        root_pos=root_pos,
+        root_quat=root_quat,
+        dof_pos=dof,
+    )

@@ -54,12 +54,15 @@ def quat_mul(a, b):
     xp = _xp(a, b)
     aw, ax, ay, az = (a[..., i] for i in range(4))
     bw, bx, by, bz = (b[..., i] for i in range(4))
-    return xp.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=-1)
+    return xp.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
 
 
 def quat_conj(q):
@@ -121,15 +124,17 @@ def mat_to_quat(m):
     m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    t = xp.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22,
-                  1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=-1)
+    t = xp.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=-1)
     # Each candidate is proportional to q; the one with the largest pivot is best conditioned.
-    cands = xp.stack([
-        xp.stack([t[..., 0], m21 - m12, m02 - m20, m10 - m01], axis=-1),
-        xp.stack([m21 - m12, t[..., 1], m01 + m10, m02 + m20], axis=-1),
-        xp.stack([m02 - m20, m01 + m10, t[..., 2], m12 + m21], axis=-1),
-        xp.stack([m10 - m01, m02 + m20, m12 + m21, t[..., 3]], axis=-1),
-    ], axis=-2)
+    cands = xp.stack(
+        [
+            xp.stack([t[..., 0], m21 - m12, m02 - m20, m10 - m01], axis=-1),
+            xp.stack([m21 - m12, t[..., 1], m01 + m10, m02 + m20], axis=-1),
+            xp.stack([m02 - m20, m01 + m10, t[..., 2], m12 + m21], axis=-1),
+            xp.stack([m10 - m01, m02 + m20, m12 + m21, t[..., 3]], axis=-1),
+        ],
+        axis=-2,
+    )
     idx = xp.argmax(t, axis=-1)[..., None, None]
     q = xp.take_along_axis(cands, idx, axis=-2)[..., 0, :]
     return quat_normalize(q)
@@ -285,8 +290,7 @@ def exp_map_to_quat(v):
     angle = xp.linalg.norm(v, axis=-1, keepdims=True)
     tiny = angle < 1e-6
     # sin(angle / 2) / angle -> 1/2 - angle^2 / 48.
-    scale = xp.where(tiny, 0.5 - angle * angle / 48.0,
-                     xp.sin(0.5 * angle) / xp.where(tiny, 1.0, angle))
+    scale = xp.where(tiny, 0.5 - angle * angle / 48.0, xp.sin(0.5 * angle) / xp.where(tiny, 1.0, angle))
     return xp.concatenate([xp.cos(0.5 * angle), v * scale], axis=-1)
 
 

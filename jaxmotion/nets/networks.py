@@ -118,14 +118,16 @@ class GaussianPolicy(nn.Module):
                 name="log_std",
             )(h)
         else:
-            log_std = self.param(
-                "log_std", nn.initializers.constant(self.init_log_std), (self.action_size,)
-            )
+            log_std = self.param("log_std", nn.initializers.constant(self.init_log_std), (self.action_size,))
             log_std = jnp.broadcast_to(log_std, mean.shape)
         if not self.meta_size:
             return mean, log_std
-        w = nn.Dense(self.meta_size, kernel_init=symmetric_uniform(1e-4),
-                     bias_init=nn.initializers.constant(self.meta_weight_bias), name="meta_weight")(h)
+        w = nn.Dense(
+            self.meta_size,
+            kernel_init=symmetric_uniform(1e-4),
+            bias_init=nn.initializers.constant(self.meta_weight_bias),
+            name="meta_weight",
+        )(h)
         return mean, log_std, nn.sigmoid(w)
 
 
@@ -287,7 +289,8 @@ def make_discriminator_network(obs_size: int, num_heads: int = 32, **kwargs: Any
     module = DiscriminatorEnsemble(num_heads=num_heads, **kwargs)
     net = make_network(module, obs_size)
     return dataclasses.replace(
-        net, head_grad_sq_norms=lambda params, x: head_input_grad_sq_norms(params, x, module.activation))
+        net, head_grad_sq_norms=lambda params, x: head_input_grad_sq_norms(params, x, module.activation)
+    )
 
 
 def value_head(params: Params) -> tuple[jax.Array, jax.Array]:

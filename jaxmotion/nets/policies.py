@@ -70,10 +70,10 @@ class IncrementalPolicy:
     ``meta_act(frozen, obs, rng)`` is the frozen policy's action from raw observations of the new
     task (``training.meta.Meta.act``)."""
 
-    def __init__(self, obs_size: int, action_size: int, meta_act: Callable, meta_weight_bias: float,
-                 **net_kwargs: Any):
-        self.net = nets.make_policy_network(obs_size, action_size, meta_size=action_size,
-                                            meta_weight_bias=meta_weight_bias, **net_kwargs)
+    def __init__(self, obs_size: int, action_size: int, meta_act: Callable, meta_weight_bias: float, **net_kwargs: Any):
+        self.net = nets.make_policy_network(
+            obs_size, action_size, meta_size=action_size, meta_weight_bias=meta_weight_bias, **net_kwargs
+        )
         self.meta_act = meta_act
         self.extra_size = self.weight_size = action_size
 

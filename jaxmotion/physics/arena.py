@@ -86,23 +86,47 @@ _TRUNK = ("torso", "upper_waist", "pelvis")
 _ARMS = ("right_hand", "left_hand", "right_lower_arm", "left_lower_arm")
 SPORTS = {
     "boxing": SportGeoms(
-        sword_shield=False, scorers=("right_hand", "left_hand"),
+        sword_shield=False,
+        scorers=("right_hand", "left_hand"),
         targets=("head", "torso", "right_clavicle", "left_clavicle", "upper_waist"),
-        blocks=((_ARMS, _ARMS + ("right_upper_arm", "left_upper_arm")),
-                (("right_lower_arm", "left_lower_arm"), ("head", "torso", "upper_waist")),
-                (_TRUNK, _TRUNK), (("right_thigh", "left_thigh"), ("right_thigh", "left_thigh"))),
+        blocks=(
+            (_ARMS, _ARMS + ("right_upper_arm", "left_upper_arm")),
+            (("right_lower_arm", "left_lower_arm"), ("head", "torso", "upper_waist")),
+            (_TRUNK, _TRUNK),
+            (("right_thigh", "left_thigh"), ("right_thigh", "left_thigh")),
+        ),
         scorer_points=(("right_hand", (0.0, 0.0, 0.0)), ("left_hand", (0.0, 0.0, 0.0))),
-        target_points=(("head", (0.0, 0.0, 0.175)), ("torso", (0.0, 0.0, 0.12)), ("pelvis", (0.0, 0.0, 0.205)))),
+        target_points=(("head", (0.0, 0.0, 0.175)), ("torso", (0.0, 0.0, 0.12)), ("pelvis", (0.0, 0.0, 0.205))),
+    ),
     "fencing": SportGeoms(
-        sword_shield=True, scorers=("sword_blade",),
+        sword_shield=True,
+        scorers=("sword_blade",),
         targets=("torso", "right_clavicle", "left_clavicle", "upper_waist"),
-        blocks=((("sword_blade",), ("sword_blade", "shield_plate", "head", "right_upper_arm", "left_upper_arm",
-                                    "right_lower_arm", "left_lower_arm", "right_hand", "left_hand",
-                                    "right_thigh", "left_thigh", "pelvis")),
-                (("shield_plate",), ("shield_plate",)), (_TRUNK, _TRUNK)),
+        blocks=(
+            (
+                ("sword_blade",),
+                (
+                    "sword_blade",
+                    "shield_plate",
+                    "head",
+                    "right_upper_arm",
+                    "left_upper_arm",
+                    "right_lower_arm",
+                    "left_lower_arm",
+                    "right_hand",
+                    "left_hand",
+                    "right_thigh",
+                    "left_thigh",
+                    "pelvis",
+                ),
+            ),
+            (("shield_plate",), ("shield_plate",)),
+            (_TRUNK, _TRUNK),
+        ),
         # The blade's tip is the sword body's origin; the blade runs 0.68 m back along -x.
         scorer_points=(("sword", (0.0, 0.0, 0.0)), ("sword", (-0.2, 0.0, 0.0)), ("sword", (-0.4, 0.0, 0.0))),
-        target_points=(("torso", (0.0, 0.0, 0.12)), ("pelvis", (0.0, 0.0, 0.205)))),
+        target_points=(("torso", (0.0, 0.0, 0.12)), ("pelvis", (0.0, 0.0, 0.205))),
+    ),
 }
 
 
@@ -153,7 +177,7 @@ def arena_mjcf(cfg: ArenaConfig) -> str:
     wb.remove(body)
     if cfg.sport == "boxing":
         # Gloves: the hand spheres enlarged, density lowered to keep the mass.
-        vol = 4.0 / 3.0 * np.pi * cfg.glove_radius ** 3
+        vol = 4.0 / 3.0 * np.pi * cfg.glove_radius**3
         for g in body.iter("geom"):
             if g.get("name") in ("right_hand", "left_hand"):
                 g.set("size", f"{cfg.glove_radius:g}")
@@ -163,8 +187,18 @@ def arena_mjcf(cfg: ArenaConfig) -> str:
         # massless, invisible box of its size (the cylinder still meets the floor).
         for b in body.iter("body"):
             if b.get("name") == "shield":
-                ET.SubElement(b, "geom", name="shield_plate", type="box", pos="0 0.015 0",
-                              size="0.3 0.015 0.3", mass="0", rgba="0 0 0 0", contype="0", conaffinity="0")
+                ET.SubElement(
+                    b,
+                    "geom",
+                    name="shield_plate",
+                    type="box",
+                    pos="0 0.015 0",
+                    size="0.3 0.015 0.3",
+                    mass="0",
+                    rgba="0 0 0 0",
+                    contype="0",
+                    conaffinity="0",
+                )
     for k, (prefix, rgba) in enumerate(zip(PREFIXES, PLAYER_RGBA)):
         p = _prefix_tree(body, prefix, rgba)
         p.set("pos", f"{2 * k - 1:g} 0 1")
@@ -173,17 +207,39 @@ def arena_mjcf(cfg: ArenaConfig) -> str:
         h, t = cfg.ring_size / 2, cfg.rope_thickness
         lo, hi = cfg.rope_height
         zc, zh = (lo + hi) / 2, (hi - lo) / 2
-        for i, (x, y, sx, sy) in enumerate([(h + t / 2, 0, t / 2, h + t), (-h - t / 2, 0, t / 2, h + t),
-                                            (0, h + t / 2, h + t, t / 2), (0, -h - t / 2, h + t, t / 2)]):
-            ET.SubElement(wb, "geom", name=f"rope{i}", type="box", pos=f"{x:g} {y:g} {zc:g}",
-                          size=f"{sx:g} {sy:g} {zh:g}", contype="1", conaffinity="0", condim="3",
-                          rgba=ROPE_RGBA)
+        for i, (x, y, sx, sy) in enumerate(
+            [
+                (h + t / 2, 0, t / 2, h + t),
+                (-h - t / 2, 0, t / 2, h + t),
+                (0, h + t / 2, h + t, t / 2),
+                (0, -h - t / 2, h + t, t / 2),
+            ]
+        ):
+            ET.SubElement(
+                wb,
+                "geom",
+                name=f"rope{i}",
+                type="box",
+                pos=f"{x:g} {y:g} {zc:g}",
+                size=f"{sx:g} {sy:g} {zh:g}",
+                contype="1",
+                conaffinity="0",
+                condim="3",
+                rgba=ROPE_RGBA,
+            )
     contact = ET.SubElement(root, "contact")
-    pairs = (scoring_pairs(cfg, 0) + scoring_pairs(cfg, 1)
-             + _unique_pairs(sp.blocks, PREFIXES[0], PREFIXES[1]))
+    pairs = scoring_pairs(cfg, 0) + scoring_pairs(cfg, 1) + _unique_pairs(sp.blocks, PREFIXES[0], PREFIXES[1])
     for g1, g2 in pairs:
-        ET.SubElement(contact, "pair", geom1=g1, geom2=g2, condim=str(cfg.pair_condim),
-                      friction="0.5 0.5 0.005 0.0001 0.0001", solref=".015 1", solimp=".9 .99 .003")
+        ET.SubElement(
+            contact,
+            "pair",
+            geom1=g1,
+            geom2=g2,
+            condim=str(cfg.pair_condim),
+            friction="0.5 0.5 0.005 0.0001 0.0001",
+            solref=".015 1",
+            solimp=".9 .99 .003",
+        )
     act = root.find("actuator")
     gens = list(act)
     for g in gens:
@@ -207,8 +263,7 @@ def channels(cfg: ArenaConfig, m: mujoco.MjModel | None = None) -> tuple[Channel
     """The scoring force channels: player 0's hits on player 1, then player 1's on player 0."""
     m = arena_model(cfg) if m is None else m
     gid = lambda n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n)
-    return tuple(Channel(f"p{k}_scores", tuple((gid(a), gid(b)) for a, b in scoring_pairs(cfg, k)))
-                 for k in range(2))
+    return tuple(Channel(f"p{k}_scores", tuple((gid(a), gid(b)) for a, b in scoring_pairs(cfg, k))) for k in range(2))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,14 +305,29 @@ def scenery(cfg: ArenaConfig, piste: tuple[float, float] | None = None) -> tuple
         m = arena_model(cfg)
         for i in range(4):
             g = m.geom(f"rope{i}")
-            out.append({"name": f"scenery_rope{i}", "type": "box", "pos": _fmt3(g.pos), "size": _fmt3(g.size),
-                        "rgba": ROPE_RGBA})
+            out.append(
+                {
+                    "name": f"scenery_rope{i}",
+                    "type": "box",
+                    "pos": _fmt3(g.pos),
+                    "size": _fmt3(g.size),
+                    "rgba": ROPE_RGBA,
+                }
+            )
     if piste is not None:
         L, W = piste
-        for i, (x, y, sx, sy) in enumerate([(0, W / 2, L / 2, 0.02), (0, -W / 2, L / 2, 0.02),
-                                            (L / 2, 0, 0.02, W / 2), (-L / 2, 0, 0.02, W / 2)]):
-            out.append({"name": f"scenery_piste{i}", "type": "box", "pos": f"{x:g} {y:g} 0.002",
-                        "size": f"{sx:g} {sy:g} 0.002", "rgba": "0.95 0.95 0.95 1"})
+        for i, (x, y, sx, sy) in enumerate(
+            [(0, W / 2, L / 2, 0.02), (0, -W / 2, L / 2, 0.02), (L / 2, 0, 0.02, W / 2), (-L / 2, 0, 0.02, W / 2)]
+        ):
+            out.append(
+                {
+                    "name": f"scenery_piste{i}",
+                    "type": "box",
+                    "pos": f"{x:g} {y:g} 0.002",
+                    "size": f"{sx:g} {sy:g} 0.002",
+                    "rgba": "0.95 0.95 0.95 1",
+                }
+            )
     return tuple(out)
 
 

@@ -82,8 +82,9 @@ def channel_forces_mjx(data: mjx.Data, channels) -> jax.Array:
     out = []
     for ch in channels:
         pairs = jnp.asarray(ch.pairs, jnp.int32)  # [P, 2]
-        match = (((g[:, None, 0] == pairs[None, :, 0]) & (g[:, None, 1] == pairs[None, :, 1]))
-                 | ((g[:, None, 0] == pairs[None, :, 1]) & (g[:, None, 1] == pairs[None, :, 0])))
+        match = ((g[:, None, 0] == pairs[None, :, 0]) & (g[:, None, 1] == pairs[None, :, 1])) | (
+            (g[:, None, 0] == pairs[None, :, 1]) & (g[:, None, 1] == pairs[None, :, 0])
+        )
         out.append(jnp.sum(jnp.where(jnp.any(match, -1), force, 0.0)))
     return jnp.stack(out).astype(jnp.float32)
 
@@ -162,6 +163,7 @@ def _with_ground_sensors(mj_xml: str, floor: str = "floor", channels=()) -> mujo
 @functools.lru_cache(maxsize=4)
 def _pool(nthread: int):
     from mujoco import rollout
+
     return rollout.Rollout(nthread=nthread)
 
 
@@ -170,16 +172,30 @@ class MujocoPhysics:
 
     name = "mujoco"
 
-    def __init__(self, mj_xml: str, params_from: mujoco.MjModel, model: mjx.Model, substeps: int,
-                 nthread: int | None = None, channels=()):
+    def __init__(
+        self,
+        mj_xml: str,
+        params_from: mujoco.MjModel,
+        model: mjx.Model,
+        substeps: int,
+        nthread: int | None = None,
+        channels=(),
+    ):
         self.channels = tuple(channels)
         m = _with_ground_sensors(mj_xml, channels=self.channels)
         # Settings and servo gains come from ``params_from`` (the same structure, maybe edited).
         m.opt.timestep = params_from.opt.timestep
         m.opt.iterations = params_from.opt.iterations
         m.opt.ls_iterations = params_from.opt.ls_iterations
-        for f in ("actuator_gainprm", "actuator_biasprm", "actuator_forcerange", "dof_damping",
-                  "dof_armature", "geom_friction", "body_mass"):
+        for f in (
+            "actuator_gainprm",
+            "actuator_biasprm",
+            "actuator_forcerange",
+            "dof_damping",
+            "dof_armature",
+            "geom_friction",
+            "body_mass",
+        ):
             getattr(m, f)[:] = getattr(params_from, f)
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.mj = m
@@ -190,8 +206,9 @@ class MujocoPhysics:
         self._lock = threading.Lock()
         full = mujoco.mjtState.mjSTATE_FULLPHYSICS
         if mujoco.mj_stateSize(m, full) != 1 + m.nq + m.nv:
-            raise NotImplementedError("the MuJoCo C backend supports models without actuator "
-                                      "activations, delays or plugins")
+            raise NotImplementedError(
+                "the MuJoCo C backend supports models without actuator activations, delays or plugins"
+            )
         self.nstate = 1 + m.nq + m.nv
 
     def host_step(self, qpos: np.ndarray, qvel: np.ndarray, warm: np.ndarray, target: np.ndarray):
@@ -200,16 +217,17 @@ class MujocoPhysics:
         lead = qpos.shape[:-1]
         n = int(np.prod(lead)) if lead else 1
         state0 = np.zeros((n, self.nstate), np.float64)
-        state0[:, 1:1 + m.nq] = qpos.reshape(n, m.nq)
-        state0[:, 1 + m.nq:] = qvel.reshape(n, m.nv)
+        state0[:, 1 : 1 + m.nq] = qpos.reshape(n, m.nq)
+        state0[:, 1 + m.nq :] = qvel.reshape(n, m.nv)
         ctrl = np.repeat(np.asarray(target, np.float64).reshape(n, 1, m.nu), self.substeps, axis=1)
         warm0 = np.ascontiguousarray(warm.reshape(n, m.nv), np.float64)
         with self._lock:
             states, sensors = _pool(self.nthread).rollout(
-                m, self._datas, state0, ctrl, nstep=self.substeps, initial_warmstart=warm0)
+                m, self._datas, state0, ctrl, nstep=self.substeps, initial_warmstart=warm0
+            )
         last = states[:, -1]
-        q1, v1 = last[:, 1:1 + m.nq], last[:, 1 + m.nq:]
-        v0 = states[:, -2, 1 + m.nq:] if self.substeps > 1 else state0[:, 1 + m.nq:]
+        q1, v1 = last[:, 1 : 1 + m.nq], last[:, 1 + m.nq :]
+        v0 = states[:, -2, 1 + m.nq :] if self.substeps > 1 else state0[:, 1 + m.nq :]
         with np.errstate(invalid="ignore", over="ignore"):
             w1 = (v1 - v0) / m.opt.timestep
         w1 = np.where(np.isfinite(w1), w1, 0.0)
@@ -220,11 +238,16 @@ class MujocoPhysics:
         i = nb
         for c, ch in enumerate(self.channels):
             k = len(ch.pairs)
-            normal = sensors[:, :, i:i + 3 * k:3]  # [n, substeps, pairs]
+            normal = sensors[:, :, i : i + 3 * k : 3]  # [n, substeps, pairs]
             forces[:, c] = normal.sum(-1).max(-1)
             i += 3 * k
-        return (f32(q1, m.nq), f32(v1, m.nv), f32(w1, m.nv), touch.reshape(lead + (nb,)),
-                f32(forces, len(self.channels)))
+        return (
+            f32(q1, m.nq),
+            f32(v1, m.nv),
+            f32(w1, m.nv),
+            touch.reshape(lead + (nb,)),
+            f32(forces, len(self.channels)),
+        )
 
     def step(self, data: mjx.Data, target: jax.Array) -> tuple[mjx.Data, jax.Array]:
         """Holds ``target`` for ``substeps`` MuJoCo C steps; returns (data, body ground contacts).
@@ -237,21 +260,37 @@ class MujocoPhysics:
         """As ``step``, plus [n_channels] the maximum over the substeps of each force channel."""
         m = self.mj
         lead = data.qpos.shape[:-1]
-        shapes = (jax.ShapeDtypeStruct(lead + (m.nq,), jnp.float32),
-                  jax.ShapeDtypeStruct(lead + (m.nv,), jnp.float32),
-                  jax.ShapeDtypeStruct(lead + (m.nv,), jnp.float32),
-                  jax.ShapeDtypeStruct(lead + (m.nbody - 1,), jnp.bool_),
-                  jax.ShapeDtypeStruct(lead + (len(self.channels),), jnp.float32))
+        shapes = (
+            jax.ShapeDtypeStruct(lead + (m.nq,), jnp.float32),
+            jax.ShapeDtypeStruct(lead + (m.nv,), jnp.float32),
+            jax.ShapeDtypeStruct(lead + (m.nv,), jnp.float32),
+            jax.ShapeDtypeStruct(lead + (m.nbody - 1,), jnp.bool_),
+            jax.ShapeDtypeStruct(lead + (len(self.channels),), jnp.float32),
+        )
         qpos, qvel, warm, touch, forces = jax.pure_callback(
-            self.host_step, shapes, data.qpos, data.qvel, data.qacc_warmstart,
-            target.astype(jnp.float32), vmap_method="broadcast_all")
-        data = data.replace(qpos=qpos, qvel=qvel, qacc_warmstart=warm, ctrl=target,
-                            time=data.time + self.substeps * m.opt.timestep)
+            self.host_step,
+            shapes,
+            data.qpos,
+            data.qvel,
+            data.qacc_warmstart,
+            target.astype(jnp.float32),
+            vmap_method="broadcast_all",
+        )
+        data = data.replace(
+            qpos=qpos, qvel=qvel, qacc_warmstart=warm, ctrl=target, time=data.time + self.substeps * m.opt.timestep
+        )
         return data, touch, forces
 
 
-def make_physics(backend: str, mj: mujoco.MjModel, mj_xml: str, model: mjx.Model, substeps: int,
-                 nthread: int | None = None, channels=()):
+def make_physics(
+    backend: str,
+    mj: mujoco.MjModel,
+    mj_xml: str,
+    model: mjx.Model,
+    substeps: int,
+    nthread: int | None = None,
+    channels=(),
+):
     """The backend object for a resolved or ``auto`` backend name; ``channels``: the force
     channels ``step_forces`` reports (``physics/arena.py``)."""
     name = resolve_backend(backend)

@@ -63,8 +63,16 @@ class BodySpec:
     geoms: tuple[_G, ...]
 
 
-def _hinges(prefix: str, axes: str, lo_hi: Sequence[tuple[float, float]], kp: float, kd: float,
-            torque: float, armature: float, single: bool = False) -> tuple[JointSpec, ...]:
+def _hinges(
+    prefix: str,
+    axes: str,
+    lo_hi: Sequence[tuple[float, float]],
+    kp: float,
+    kd: float,
+    torque: float,
+    armature: float,
+    single: bool = False,
+) -> tuple[JointSpec, ...]:
     out = []
     for ax, rng in zip(axes, lo_hi):
         name = prefix if single else f"{prefix}_{ax}"
@@ -80,33 +88,71 @@ PROP_BIT = 2
 def _body_table(sword_shield: bool, racket: bool = False) -> list[BodySpec]:
     cap = "capsule"
     bodies = [
-        BodySpec("pelvis", None, (0, 0, 1), (), (
-            ("pelvis", "sphere", 'pos="0 0 0.07" size=".09" density="2226"'),
-            ("upper_waist", "sphere", 'pos="0 0 0.205" size="0.07" density="2226"'))),
-        BodySpec("torso", "pelvis", (0, 0, 0.236151),
-                 _hinges("abdomen", "xyz", [(-60, 60), (-60, 90), (-50, 50)], 600, 60, 125, .025), (
-            ("torso", "sphere", 'pos="0 0 0.12" size="0.11" density="1794"'),
-            ("right_clavicle", cap, 'fromto="-0.0060125 -0.0457775 0.2287955 -0.016835 -0.128177 0.2376182" size=".045" density="1100"'),
-            ("left_clavicle", cap, 'fromto="-0.0060125 0.0457775 0.2287955 -0.016835 0.128177 0.2376182" size=".045" density="1100"'))),
-        BodySpec("head", "torso", (0, 0, 0.223894),
-                 _hinges("neck", "xyz", [(-50, 50), (-40, 60), (-45, 45)], 50, 5, 20, .017), (
-            ("head", "sphere", 'pos="0 0 0.175" size="0.095" density="1081"'),)),
+        BodySpec(
+            "pelvis",
+            None,
+            (0, 0, 1),
+            (),
+            (
+                ("pelvis", "sphere", 'pos="0 0 0.07" size=".09" density="2226"'),
+                ("upper_waist", "sphere", 'pos="0 0 0.205" size="0.07" density="2226"'),
+            ),
+        ),
+        BodySpec(
+            "torso",
+            "pelvis",
+            (0, 0, 0.236151),
+            _hinges("abdomen", "xyz", [(-60, 60), (-60, 90), (-50, 50)], 600, 60, 125, 0.025),
+            (
+                ("torso", "sphere", 'pos="0 0 0.12" size="0.11" density="1794"'),
+                (
+                    "right_clavicle",
+                    cap,
+                    'fromto="-0.0060125 -0.0457775 0.2287955 -0.016835 -0.128177 0.2376182" size=".045" density="1100"',
+                ),
+                (
+                    "left_clavicle",
+                    cap,
+                    'fromto="-0.0060125 0.0457775 0.2287955 -0.016835 0.128177 0.2376182" size=".045" density="1100"',
+                ),
+            ),
+        ),
+        BodySpec(
+            "head",
+            "torso",
+            (0, 0, 0.223894),
+            _hinges("neck", "xyz", [(-50, 50), (-40, 60), (-45, 45)], 50, 5, 20, 0.017),
+            (("head", "sphere", 'pos="0 0 0.175" size="0.095" density="1081"'),),
+        ),
     ]
     for side, sgn in (("right", -1), ("left", 1)):
         sx = [(-180, 45), (-180, 60), (-90, 90)] if side == "right" else [(-45, 180), (-180, 60), (-90, 90)]
         arm = [
-            BodySpec(f"{side}_upper_arm", "torso", (-0.02405, sgn * 0.18311, 0.24350),
-                     _hinges(f"{side}_shoulder", "xyz", sx, 200, 20, 70, .02), (
-                (f"{side}_upper_arm", cap, 'fromto="0 0 -0.05 0 0 -0.23" size=".045" density="982"'),)),
-            BodySpec(f"{side}_lower_arm", f"{side}_upper_arm", (0, 0, -0.274788),
-                     _hinges(f"{side}_elbow", "y", [(-160, 0)], 150, 15, 60, .015, single=True), (
-                (f"{side}_lower_arm", cap, 'fromto="0 0 -0.0525 0 0 -0.1875" size="0.04" density="1056"'),)),
+            BodySpec(
+                f"{side}_upper_arm",
+                "torso",
+                (-0.02405, sgn * 0.18311, 0.24350),
+                _hinges(f"{side}_shoulder", "xyz", sx, 200, 20, 70, 0.02),
+                ((f"{side}_upper_arm", cap, 'fromto="0 0 -0.05 0 0 -0.23" size=".045" density="982"'),),
+            ),
+            BodySpec(
+                f"{side}_lower_arm",
+                f"{side}_upper_arm",
+                (0, 0, -0.274788),
+                _hinges(f"{side}_elbow", "y", [(-160, 0)], 150, 15, 60, 0.015, single=True),
+                ((f"{side}_lower_arm", cap, 'fromto="0 0 -0.0525 0 0 -0.1875" size="0.04" density="1056"'),),
+            ),
         ]
         wrist = ()
         if sword_shield and side == "right":
-            wrist = _hinges("right_hand", "xyz", [(-90, 90)] * 3, 100, 10, 50, .003)
-        hand = BodySpec(f"{side}_hand", f"{side}_lower_arm", (0, 0, -0.258947), wrist, (
-            (f"{side}_hand", "sphere", 'size=".04" density="1865"'),))
+            wrist = _hinges("right_hand", "xyz", [(-90, 90)] * 3, 100, 10, 50, 0.003)
+        hand = BodySpec(
+            f"{side}_hand",
+            f"{side}_lower_arm",
+            (0, 0, -0.258947),
+            wrist,
+            ((f"{side}_hand", "sphere", 'size=".04" density="1865"'),),
+        )
         arm.append(hand)
         if sword_shield and side == "right" and racket:
             # A tennis racket in the sword's place (the body keeps the clips' name "sword"): a
@@ -114,14 +160,35 @@ def _body_table(sword_shield: bool, racket: bool = False) -> list[BodySpec]:
             # sword's cutting edge (z), 0.31 kg in all. The head is 4 cm thick, a collision proxy:
             # a ball struck at up to 20 m/s moves 8 cm per 240-Hz substep and would pass through
             # a real racket's 2 cm (physics/props.py). Balls meet it through explicit pairs.
-            arm.append(BodySpec("sword", "right_hand", (0.74, 0, 0), (), (
-                ("racket_handle", cap, 'fromto="-0.87 0 0 -0.55 0 0" size="0.016" density="450"'),
-                ("racket_head", "box", f'pos="{RACKET_HEAD[0]:g} 0 0" size="0.16 0.125 0.02" density="65" '
-                 'rgba="0.2 0.7 0.3 1"'))))
+            arm.append(
+                BodySpec(
+                    "sword",
+                    "right_hand",
+                    (0.74, 0, 0),
+                    (),
+                    (
+                        ("racket_handle", cap, 'fromto="-0.87 0 0 -0.55 0 0" size="0.016" density="450"'),
+                        (
+                            "racket_head",
+                            "box",
+                            f'pos="{RACKET_HEAD[0]:g} 0 0" size="0.16 0.125 0.02" density="65" rgba="0.2 0.7 0.3 1"',
+                        ),
+                    ),
+                )
+            )
         elif sword_shield and side == "right":
-            arm.append(BodySpec("sword", "right_hand", (0.74, 0, 0), (), (
-                ("sword_hilt", cap, 'fromto="-0.87 0 0 -0.64 0 0" size="0.023" density="300"'),
-                ("sword_blade", "box", 'pos="-0.34 0 0" size="0.34 0.01 0.035" density="600"'))))
+            arm.append(
+                BodySpec(
+                    "sword",
+                    "right_hand",
+                    (0.74, 0, 0),
+                    (),
+                    (
+                        ("sword_hilt", cap, 'fromto="-0.87 0 0 -0.64 0 0" size="0.023" density="300"'),
+                        ("sword_blade", "box", 'pos="-0.34 0 0" size="0.34 0.01 0.035" density="600"'),
+                    ),
+                )
+            )
         if sword_shield and side == "left":
             # Ordered as in the ASE clips: the shield comes before the left hand. With the racket
             # the shield body stays (the clips move it) but weighs 4 g and touches nothing.
@@ -134,15 +201,27 @@ def _body_table(sword_shield: bool, racket: bool = False) -> list[BodySpec]:
         # Hip hinges in y, x, z order (flexion, then abduction, then twist); ranges as the source.
         hx = [(-140, 60), (-60, 15), (-60, 35)] if side == "right" else [(-140, 60), (-15, 60), (-35, 60)]
         bodies += [
-            BodySpec(f"{side}_thigh", "pelvis", (0, sgn * 0.084887, 0),
-                     _hinges(f"{side}_hip", "yxz", hx, 300, 30, 125, .02), (
-                (f"{side}_thigh", cap, 'fromto="0 0 -0.06 0 0 -0.36" size="0.055" density="1269"'),)),
-            BodySpec(f"{side}_shin", f"{side}_thigh", (0, 0, -0.421546),
-                     _hinges(f"{side}_knee", "y", [(0, 160)], 300, 30, 100, .02, single=True), (
-                (f"{side}_shin", cap, 'fromto="0 0 -0.045 0 0 -0.355" size=".05" density="1014"'),)),
-            BodySpec(f"{side}_foot", f"{side}_shin", (0, 0, -0.409870),
-                     _hinges(f"{side}_ankle", "xyz", [(-30, 30), (-55, 55), (-40, 40)], 200, 20, 50, .01), (
-                (f"{side}_foot", "box", 'pos="0.045 0 -0.0225" size="0.0885 0.045 0.0275" density="1141"'),)),
+            BodySpec(
+                f"{side}_thigh",
+                "pelvis",
+                (0, sgn * 0.084887, 0),
+                _hinges(f"{side}_hip", "yxz", hx, 300, 30, 125, 0.02),
+                ((f"{side}_thigh", cap, 'fromto="0 0 -0.06 0 0 -0.36" size="0.055" density="1269"'),),
+            ),
+            BodySpec(
+                f"{side}_shin",
+                f"{side}_thigh",
+                (0, 0, -0.421546),
+                _hinges(f"{side}_knee", "y", [(0, 160)], 300, 30, 100, 0.02, single=True),
+                ((f"{side}_shin", cap, 'fromto="0 0 -0.045 0 0 -0.355" size=".05" density="1014"'),),
+            ),
+            BodySpec(
+                f"{side}_foot",
+                f"{side}_shin",
+                (0, 0, -0.409870),
+                _hinges(f"{side}_ankle", "xyz", [(-30, 30), (-55, 55), (-40, 40)], 200, 20, 50, 0.01),
+                ((f"{side}_foot", "box", 'pos="0.045 0 -0.0225" size="0.0885 0.045 0.0275" density="1141"'),),
+            ),
         ]
     return bodies
 
@@ -162,8 +241,9 @@ def _write_body(b: BodySpec, children: dict[str, list[BodySpec]], indent: int) -
         lines.append(f'{pad}  <freejoint name="root"/>')
     for j in b.joints:
         axis = ["1 0 0", "0 1 0", "0 0 1"][j.axis]
-        lines.append(f'{pad}  <joint name="{j.name}" axis="{axis}" range="{_fmt(j.range_deg)}" '
-                     f'armature="{j.armature:g}"/>')
+        lines.append(
+            f'{pad}  <joint name="{j.name}" axis="{axis}" range="{_fmt(j.range_deg)}" armature="{j.armature:g}"/>'
+        )
     for name, typ, attrs in b.geoms:
         lines.append(f'{pad}  <geom name="{name}" type="{typ}" {attrs}/>')
     for c in children.get(b.name, []):
@@ -180,8 +260,9 @@ def build_mjcf(sword_shield: bool = False, floor: bool = True, racket: bool = Fa
     """Returns the MJCF text of the humanoid (optionally with sword and shield; ``racket``: a
     tennis racket instead of the sword, and no shield) over a floor."""
     if racket and not sword_shield:
-        raise ValueError("the racket needs the sword-and-shield character (its 3-DoF wrist): "
-                         "set env.physics.sword_shield=true")
+        raise ValueError(
+            "the racket needs the sword-and-shield character (its 3-DoF wrist): set env.physics.sword_shield=true"
+        )
     bodies = _body_table(sword_shield, racket)
     children: dict[str, list[BodySpec]] = {}
     for b in bodies:
@@ -195,24 +276,26 @@ def build_mjcf(sword_shield: bool = False, floor: bool = True, racket: bool = Fa
         '  <option timestep="0.008333333333333333" integrator="implicitfast" iterations="16" '
         'ls_iterations="16" solver="Newton">',
         '    <flag eulerdamp="disable"/>',
-        '  </option>',
+        "  </option>",
         '  <visual><global offwidth="1280" offheight="720"/></visual>',
-        '  <asset>',
+        "  <asset>",
         '    <texture name="grid" type="2d" builtin="checker" rgb1=".2 .3 .4" rgb2=".1 .15 .2" '
         'width="512" height="512"/>',
         '    <material name="grid" texture="grid" texrepeat="1 1" texuniform="true" reflectance=".1"/>',
-        '  </asset>',
-        '  <default>',
+        "  </asset>",
+        "  <default>",
         # Body geoms collide with the floor only: contype 0 & conaffinity 1 against floor 1/0.
         f'    <geom contype="0" conaffinity="1" condim="3" friction="1 0.05 0.05" '
         f'solimp=".9 .99 .003" solref=".015 1" rgba="{_BODY_RGBA}"/>',
         '    <joint type="hinge" limited="true" solimplimit="0 .99 .01"/>',
-        '  </default>',
-        '  <worldbody>',
+        "  </default>",
+        "  <worldbody>",
     ]
     if floor:
-        out.append('    <geom name="floor" type="plane" size="100 100 .2" material="grid" '
-                   'contype="1" conaffinity="0" condim="3" rgba="1 1 1 1"/>')
+        out.append(
+            '    <geom name="floor" type="plane" size="100 100 .2" material="grid" '
+            'contype="1" conaffinity="0" condim="3" rgba="1 1 1 1"/>'
+        )
     out.append('    <light name="top" pos="0 0 4" mode="trackcom" diffuse=".8 .8 .8"/>')
     out += _write_body(bodies[0], children, 2)
     out.append("  </worldbody>")
@@ -221,7 +304,8 @@ def build_mjcf(sword_shield: bool = False, floor: bool = True, racket: bool = Fa
         out.append(
             f'    <general name="{j.name}" joint="{j.name}" gaintype="fixed" gainprm="{j.kp:g}" '
             f'biastype="affine" biasprm="0 {-j.kp:g} {-j.kd:g}" forcelimited="true" '
-            f'forcerange="{-j.max_torque:g} {j.max_torque:g}" ctrllimited="false"/>')
+            f'forcerange="{-j.max_torque:g} {j.max_torque:g}" ctrllimited="false"/>'
+        )
     out.append("  </actuator>")
     out.append("</mujoco>")
     return "\n".join(out)
@@ -277,13 +361,26 @@ def character(sword_shield: bool = False) -> Character:
     jb, ja, rng, kp, kd, tq, jn = [], [], [], [], [], [], []
     for i, b in enumerate(bodies):
         for j in b.joints:
-            jn.append(j.name); jb.append(i); ja.append(j.axis)
-            rng.append(np.deg2rad(j.range_deg)); kp.append(j.kp); kd.append(j.kd); tq.append(j.max_torque)
+            jn.append(j.name)
+            jb.append(i)
+            ja.append(j.axis)
+            rng.append(np.deg2rad(j.range_deg))
+            kp.append(j.kp)
+            kd.append(j.kd)
+            tq.append(j.max_torque)
     ch = Character(
-        sword_shield=sword_shield, body_names=names, parents=parents, joint_names=tuple(jn),
-        joint_body=tuple(jb), joint_axis=tuple(ja), joint_range=np.array(rng, np.float64),
-        kp=np.array(kp), kd=np.array(kd), max_torque=np.array(tq),
-        body_offsets=np.array([b.pos for b in bodies], np.float64))
+        sword_shield=sword_shield,
+        body_names=names,
+        parents=parents,
+        joint_names=tuple(jn),
+        joint_body=tuple(jb),
+        joint_axis=tuple(ja),
+        joint_range=np.array(rng, np.float64),
+        kp=np.array(kp),
+        kd=np.array(kd),
+        max_torque=np.array(tq),
+        body_offsets=np.array([b.pos for b in bodies], np.float64),
+    )
     m = ch.mj_model()
     # The table and the compiled model must agree on order (MuJoCo orders bodies depth-first).
     assert tuple(m.body(i + 1).name for i in range(m.nbody - 1)) == names, "body order mismatch"

@@ -30,23 +30,37 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-_FREE, _BALL, _SLIDE, _HINGE = (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_BALL,
-                                mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_HINGE)
+_FREE, _BALL, _SLIDE, _HINGE = (
+    mujoco.mjtJoint.mjJNT_FREE,
+    mujoco.mjtJoint.mjJNT_BALL,
+    mujoco.mjtJoint.mjJNT_SLIDE,
+    mujoco.mjtJoint.mjJNT_HINGE,
+)
 
 
 def _qmul_np(a, b):
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return np.array([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
 
 
 def _rot_np(q):
     """Rotation matrix of a unit quaternion, written homogeneous (quadratic) in its components."""
     w, x, y, z = q
-    return np.array([[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]])
+    return np.array(
+        [
+            [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
+        ]
+    )
 
 
 def _bilinear(f, n: int, shape) -> np.ndarray:
@@ -91,7 +105,7 @@ class _Slot:
     """The j-th joint of every body of one level, as index and constant arrays over the bodies."""
 
     def __init__(self, n: int, zq: int, iq: int, zv: int):
-        self.hinge = np.full(n, zq)          # qpos index of a hinge's angle (the zero otherwise)
+        self.hinge = np.full(n, zq)  # qpos index of a hinge's angle (the zero otherwise)
         self.hinge_q0 = np.zeros(n, np.float32)
         self.hinge_axis = np.zeros((n, 3), np.float32)
         self.hinge_dof = np.full(n, zv)
@@ -115,7 +129,7 @@ class _Level:
         self.body_pos = m.body_pos[bodies].astype(np.float32)
         self.body_quat = m.body_quat[bodies].astype(np.float32)
         self.free = np.zeros(n, bool)
-        self.free_q = np.tile(np.r_[zq, zq, zq, iq:iq + 4], (n, 1))
+        self.free_q = np.tile(np.r_[zq, zq, zq, iq : iq + 4], (n, 1))
         self.free_dof = np.full((n, 6), zv)
         joints = [list(range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])) for b in bodies]
         for i, (b, js) in enumerate(zip(bodies, joints)):
@@ -258,6 +272,7 @@ class LinkFK:
                     v = v + sum(_cross(w_k, x - a_k) for w_k, a_k in arms)
                 prev = (x, r, v, w)
             outs.append(prev)
-        cat = lambda i: None if outs[0][i] is None else jnp.take(jnp.concatenate([o[i] for o in outs], -2),
-                                                                 self.order, axis=-2)
+        cat = lambda i: (
+            None if outs[0][i] is None else jnp.take(jnp.concatenate([o[i] for o in outs], -2), self.order, axis=-2)
+        )
         return cat(0), cat(1), cat(2), cat(3)

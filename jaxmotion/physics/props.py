@@ -71,7 +71,7 @@ def _solref(restitution: float, stiffness: float) -> str:
     ``restitution``: a unit-mass spring-damper with e = exp(-zeta pi / sqrt(1 - zeta^2)), damping
     2 zeta sqrt(stiffness) (see the module docstring for what was measured)."""
     e = float(np.clip(restitution, 1e-3, 0.999))
-    zeta = -np.log(e) / np.sqrt(np.pi ** 2 + np.log(e) ** 2)
+    zeta = -np.log(e) / np.sqrt(np.pi**2 + np.log(e) ** 2)
     return f"{-stiffness:g} {-2 * zeta * np.sqrt(stiffness):g}"
 
 
@@ -79,8 +79,9 @@ FLOOR_STIFFNESS = 5000.0
 RACKET_STIFFNESS = 1e5
 
 
-def scene_mjcf(sword_shield: bool = False, racket: bool = False, props: tuple[PropConfig, ...] = (),
-               floor: bool = True) -> str:
+def scene_mjcf(
+    sword_shield: bool = False, racket: bool = False, props: tuple[PropConfig, ...] = (), floor: bool = True
+) -> str:
     """The MJCF of the character (``build_mjcf``) with ``props`` appended to the world body, each
     resting on the floor 1 m apart at x = 50 m until its task places it."""
     xml = build_mjcf(sword_shield, floor=floor, racket=racket)
@@ -94,26 +95,46 @@ def scene_mjcf(sword_shield: bool = False, racket: bool = False, props: tuple[Pr
     for i, p in enumerate(props):
         body = ET.SubElement(world, "body", name=p.name, pos=f"50 {i:g} {p.radius:g}")
         ET.SubElement(body, "freejoint", name=f"{p.name}_free")
-        ET.SubElement(body, "geom", name=p.name, type="sphere", size=f"{p.radius:g}", mass=f"{p.mass:g}",
-                      contype=str(PROP_BIT), conaffinity="1", condim="3", friction="0.6 0.005 0.0001",
-                      solref=_solref(p.restitution, FLOOR_STIFFNESS), solimp="0.95 0.99 0.001",
-                      rgba=" ".join(f"{c:g}" for c in p.rgba))
+        ET.SubElement(
+            body,
+            "geom",
+            name=p.name,
+            type="sphere",
+            size=f"{p.radius:g}",
+            mass=f"{p.mass:g}",
+            contype=str(PROP_BIT),
+            conaffinity="1",
+            condim="3",
+            friction="0.6 0.005 0.0001",
+            solref=_solref(p.restitution, FLOOR_STIFFNESS),
+            solimp="0.95 0.99 0.001",
+            rgba=" ".join(f"{c:g}" for c in p.rgba),
+        )
     if racket:
         contact = root.find("contact")
         if contact is None:
             contact = ET.SubElement(root, "contact")
         for p in props:
-            ET.SubElement(contact, "pair", geom1="racket_head", geom2=p.name, condim="3",
-                          friction="0.6 0.6 0.005 0.0001 0.0001", solimp="0.95 0.99 0.001",
-                          solref=_solref(p.restitution, RACKET_STIFFNESS))
+            ET.SubElement(
+                contact,
+                "pair",
+                geom1="racket_head",
+                geom2=p.name,
+                condim="3",
+                friction="0.6 0.6 0.005 0.0001 0.0001",
+                solimp="0.95 0.99 0.001",
+                solref=_solref(p.restitution, RACKET_STIFFNESS),
+            )
     return ET.tostring(root, encoding="unicode")
 
 
 def prop_channels(m: mujoco.MjModel, props: tuple[PropConfig, ...]) -> tuple:
     """One force channel per prop: its contact with the racket head (none without a racket)."""
     from jaxmotion.physics.arena import Channel
+
     head = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "racket_head")
     if head < 0:
         return ()
-    return tuple(Channel(f"{p.name}_racket", ((head, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, p.name)),))
-                 for p in props)
+    return tuple(
+        Channel(f"{p.name}_racket", ((head, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, p.name)),)) for p in props
+    )

@@ -119,6 +119,7 @@ def _impl(cfg: PhysicsConfig) -> str:
     if jax.default_backend() == "gpu":
         try:
             import mujoco_warp  # noqa: F401
+
             return "warp"
         except ImportError:
             pass
@@ -135,8 +136,15 @@ def mjx_model(cfg: PhysicsConfig) -> mjx.Model:
 def physics(cfg: PhysicsConfig):
     """The physics backend object of ``cfg`` (``backends.MJXPhysics`` or ``MujocoPhysics``)."""
     m = mj_model(cfg)
-    return backends.make_physics(cfg.backend, m, scene_xml(cfg), mjx_model(cfg), cfg.substeps,
-                                 cfg.threads or None, channels=prop_channels(m, cfg.props))
+    return backends.make_physics(
+        cfg.backend,
+        m,
+        scene_xml(cfg),
+        mjx_model(cfg),
+        cfg.substeps,
+        cfg.threads or None,
+        channels=prop_channels(m, cfg.props),
+    )
 
 
 def pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) -> mjx.Data:
@@ -148,8 +156,9 @@ def pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) 
     return backends.mjx_pd_step(model, data, target, substeps)
 
 
-def pd_torque(ch: Character, q: jax.Array, qdot: jax.Array, target: jax.Array,
-              servo_damping: str = "actuator") -> jax.Array:
+def pd_torque(
+    ch: Character, q: jax.Array, qdot: jax.Array, target: jax.Array, servo_damping: str = "actuator"
+) -> jax.Array:
     """The servo's torque as an explicit formula (for tests and analysis) [.., n_dof]: the
     actuator's and, with ``servo_damping='joint'``, the joint damping's (``PhysicsConfig``)."""
     lim = jnp.asarray(ch.max_torque)

@@ -35,11 +35,15 @@ def _task_config(tasks: dict[str, type[Task]]) -> type:
             if fields.setdefault(field, settings) is not settings:
                 raise TypeError(f"tasks declare two settings classes for TaskConfig.{field}")
     cls = dataclasses.make_dataclass(
-        "TaskConfig", [("name", str, dataclasses.field(default="imitate"))]
+        "TaskConfig",
+        [("name", str, dataclasses.field(default="imitate"))]
         + [(f, s, dataclasses.field(default=s())) for f, s in fields.items()],
         frozen=True,
-        namespace={"__doc__": "Which task the scene runs (a name in ``TASKS``) and the settings of every "
-                              "registered task (``Task.settings``)."})
+        namespace={
+            "__doc__": "Which task the scene runs (a name in ``TASKS``) and the settings of every "
+            "registered task (``Task.settings``)."
+        },
+    )
     cls.__module__ = __name__
     return cls
 
@@ -56,5 +60,19 @@ def make_task(cfg: TaskConfig, env) -> Task:
     return cls(cfg, env)
 
 
-__all__ = ["TASKS", "Task", "TaskConfig", "TaskStep", "combine_weights", "make_task", "AimConfig", "BoxingConfig",
-           "FencingConfig", "HeadingConfig", "JuggleConfig", "LocationConfig", "TennisConfig", "TrackConfig"]
+__all__ = [
+    "TASKS",
+    "Task",
+    "TaskConfig",
+    "TaskStep",
+    "combine_weights",
+    "make_task",
+    "AimConfig",
+    "BoxingConfig",
+    "FencingConfig",
+    "HeadingConfig",
+    "JuggleConfig",
+    "LocationConfig",
+    "TennisConfig",
+    "TrackConfig",
+]

@@ -85,10 +85,10 @@ class Task:
     def observe(self, goal: Any, frame: LinkFrames) -> jax.Array:
         return jnp.zeros((0,), jnp.float32)
 
-    def step(self, goal: Any, prev: LinkFrames, frame: LinkFrames, rng: jax.Array,
-             power: jax.Array | None = None) -> TaskStep:
-        return TaskStep(goal=goal, rewards=jnp.zeros((0,), jnp.float32),
-                        terminated=jnp.zeros((), bool), info={})
+    def step(
+        self, goal: Any, prev: LinkFrames, frame: LinkFrames, rng: jax.Array, power: jax.Array | None = None
+    ) -> TaskStep:
+        return TaskStep(goal=goal, rewards=jnp.zeros((0,), jnp.float32), terminated=jnp.zeros((), bool), info={})
 
     def pd_base(self, goal: Any) -> jax.Array | None:
         """The PD targets [n_dof] the action is added to (``HumanoidEnv.pd_target``: base +
@@ -128,8 +128,9 @@ def combine_weights(group_weights: tuple[float | None, ...], goal_weights: tuple
     """
     goal = np.asarray(goal_weights, np.float64)
     if np.any(goal < 0) or (len(group_weights) and goal.sum() >= 1.0 - 1e-9):
-        raise ValueError(f"goal weights {tuple(goal_weights)} must be non-negative and sum below 1 "
-                         f"when there are discriminators")
+        raise ValueError(
+            f"goal weights {tuple(goal_weights)} must be non-negative and sum below 1 when there are discriminators"
+        )
     given = [w for w in group_weights if w is not None]
     if any(w < 0 for w in given):
         raise ValueError(f"group weights must be non-negative, got {group_weights}")

@@ -110,8 +110,7 @@ class BoutTask(Task):
     def __init__(self, cfg, env):
         super().__init__(cfg, env)
         if env.cfg.arena.sport != self.sport:
-            raise ValueError(f"task {cfg.name!r} needs env.arena.sport={self.sport!r}, "
-                             f"got {env.cfg.arena.sport!r}")
+            raise ValueError(f"task {cfg.name!r} needs env.arena.sport={self.sport!r}, got {env.cfg.arena.sport!r}")
         ch = env.character
         sp = SPORTS[self.sport]
         self._sb = jnp.asarray([ch.body_index(b) for b, _ in sp.scorer_points], jnp.int32)
@@ -119,8 +118,12 @@ class BoutTask(Task):
         self._tb = jnp.asarray([ch.body_index(b) for b, _ in sp.target_points], jnp.int32)
         self._to = jnp.asarray([o for _, o in sp.target_points], jnp.float32)
         S, T, nb = len(sp.scorer_points), len(sp.target_points), ch.num_bodies
-        self.goal_parts = (("arena", 4), ("opponent", 6 * nb), ("scorers", 6 * S * (T + S)),
-                           ("targets", 6 * T * S)) + self.extra_parts
+        self.goal_parts = (
+            ("arena", 4),
+            ("opponent", 6 * nb),
+            ("scorers", 6 * S * (T + S)),
+            ("targets", 6 * T * S),
+        ) + self.extra_parts
 
     extra_parts: ClassVar[tuple[tuple[str, int], ...]] = ()
 
@@ -193,7 +196,7 @@ class Boxing(BoutTask):
         dealt = jnp.where(forces >= c.touch_threshold, jnp.minimum(forces, c.damage_clip), 0.0)
         match = dealt - dealt[::-1]
         d = self.closeness(frame)
-        close = jnp.exp(-c.close_k * (d ** 2 if c.close_squared else d))
+        close = jnp.exp(-c.close_k * (d**2 if c.close_squared else d))
         root = frame.pos[:, 0, :2]
         to_op = root[::-1] - root
         dist = jnp.linalg.norm(to_op, axis=-1)
@@ -212,10 +215,22 @@ class Boxing(BoutTask):
         roped = rope_steps > int(round(c.rope_seconds / dt))
         penalised = fell | stuck | roped
         rewards = jnp.stack([match, close, facing, energy, -penalised.astype(jnp.float32)], -1)
-        info = {"damage_dealt": dealt, "damage_received": dealt[::-1], "hit": dealt > 0, "close": close,
-                "distance": dist, "fall": fell, "stuck": jnp.broadcast_to(stuck, (2,)), "ropes": roped}
-        return TaskStep(goal=BoxingState(stuck_steps=stuck_steps, rope_steps=rope_steps), rewards=rewards,
-                        terminated=penalised, info=info)
+        info = {
+            "damage_dealt": dealt,
+            "damage_received": dealt[::-1],
+            "hit": dealt > 0,
+            "close": close,
+            "distance": dist,
+            "fall": fell,
+            "stuck": jnp.broadcast_to(stuck, (2,)),
+            "ropes": roped,
+        }
+        return TaskStep(
+            goal=BoxingState(stuck_steps=stuck_steps, rope_steps=rope_steps),
+            rewards=rewards,
+            terminated=penalised,
+            info=info,
+        )
 
 
 class Fencing(BoutTask):
@@ -239,8 +254,9 @@ class Fencing(BoutTask):
         return xy, yaw
 
     def init(self, rng, frame, start=None) -> FencingState:
-        return FencingState(touched=jnp.zeros((2,), bool), first=-jnp.ones((), jnp.int32),
-                            since=jnp.zeros((), jnp.float32))
+        return FencingState(
+            touched=jnp.zeros((2,), bool), first=-jnp.ones((), jnp.int32), since=jnp.zeros((), jnp.float32)
+        )
 
     def observe(self, goal: FencingState, frame, k) -> jax.Array:
         trig = jnp.stack([goal.touched[k], goal.touched[1 - k]]).astype(jnp.float32)
@@ -268,11 +284,19 @@ class Fencing(BoutTask):
         touch = forces >= c.touch_threshold
         new, ended, win = self.rules(goal, touch, steps)
         d = self.closeness(frame)
-        close = jnp.exp(-c.close_k * d ** 2)
+        close = jnp.exp(-c.close_k * d**2)
         root = frame.pos[:, 0, :2]
         out = (jnp.abs(root[:, 0]) > c.piste[0] / 2) | (jnp.abs(root[:, 1]) > c.piste[1] / 2)
         penalised = fell | out
         rewards = jnp.stack([win * c.win_reward, close, -penalised.astype(jnp.float32)], -1)
-        info = {"touch": touch, "win": win > 0, "loss": win < 0, "draw": jnp.broadcast_to(ended, (2,)) & (win == 0),
-                "result": jnp.broadcast_to(ended, (2,)), "close": close, "fall": fell, "out": out}
+        info = {
+            "touch": touch,
+            "win": win > 0,
+            "loss": win < 0,
+            "draw": jnp.broadcast_to(ended, (2,)) & (win == 0),
+            "result": jnp.broadcast_to(ended, (2,)),
+            "close": close,
+            "fall": fell,
+            "out": out,
+        }
         return TaskStep(goal=new, rewards=rewards, terminated=penalised | ended, info=info)

@@ -58,6 +58,7 @@ class JuggleConfig:
     weight: float = 0.6
     """ω of the juggling reward (the authors': 0.6 juggling, 0.1 location, 0.06 arms, 0.24 body)."""
 
+
 G = 9.81
 RADIUS = 0.05
 PERIOD = 20  # steps between two throws of one hand
@@ -95,9 +96,16 @@ class JuggleGoal:
 def initial_balls(hands: jax.Array) -> Balls:
     """Balls 0 and 2 in the left hand, ball 1 in the right; ``hands`` [2, 3]."""
     holder = jnp.asarray([LEFT, RIGHT, LEFT], jnp.int32)
-    return Balls(pos=hands[holder], vel=jnp.zeros((3, 3)), holder=holder, to_hand=holder,
-                 throw_at=jnp.asarray([0, 10, 20], jnp.int32), missed=jnp.zeros(3, bool),
-                 release_h=hands[holder, 2], released=jnp.zeros(3, bool))
+    return Balls(
+        pos=hands[holder],
+        vel=jnp.zeros((3, 3)),
+        holder=holder,
+        to_hand=holder,
+        throw_at=jnp.asarray([0, 10, 20], jnp.int32),
+        missed=jnp.zeros(3, bool),
+        release_h=hands[holder, 2],
+        released=jnp.zeros(3, bool),
+    )
 
 
 def fly(pos: jax.Array, vel: jax.Array, dt: float) -> tuple[jax.Array, jax.Array]:
@@ -131,11 +139,16 @@ def step_balls(b: Balls, t: jax.Array, hands: jax.Array, hand_vel: jax.Array, dt
     # Released balls keep the hand's velocity and now belong to the other hand.
     vel = jnp.where(thrown[:, None], hand_vel[b.holder], b.vel)
     pos = jnp.where(held[:, None], hands[jnp.maximum(b.holder, 0)], b.pos)
-    b = b.replace(pos=pos, vel=vel, holder=jnp.where(thrown, -1, b.holder),
-                  to_hand=jnp.where(thrown, 1 - b.to_hand, b.to_hand),
-                  throw_at=jnp.where(thrown, b.throw_at + FLIGHT_DWELL, b.throw_at),
-                  missed=jnp.where(thrown, False, b.missed),
-                  release_h=jnp.where(thrown, pos[:, 2], b.release_h), released=b.released | thrown)
+    b = b.replace(
+        pos=pos,
+        vel=vel,
+        holder=jnp.where(thrown, -1, b.holder),
+        to_hand=jnp.where(thrown, 1 - b.to_hand, b.to_hand),
+        throw_at=jnp.where(thrown, b.throw_at + FLIGHT_DWELL, b.throw_at),
+        missed=jnp.where(thrown, False, b.missed),
+        release_h=jnp.where(thrown, pos[:, 2], b.release_h),
+        released=b.released | thrown,
+    )
     free = b.holder < 0
     if flight:
         fp, fv = fly(b.pos, b.vel, dt)
@@ -161,8 +174,9 @@ def target_ball(b: Balls, hand: int) -> tuple[jax.Array, jax.Array]:
     return i, key[i] < jnp.iinfo(jnp.int32).max
 
 
-def hand_rewards(b: Balls, thrown: jax.Array, hands: jax.Array, hand_vel: jax.Array, t: jax.Array,
-                 dt: float, v_star: float) -> jax.Array:
+def hand_rewards(
+    b: Balls, thrown: jax.Array, hands: jax.Array, hand_vel: jax.Array, t: jax.Array, dt: float, v_star: float
+) -> jax.Array:
     """[2] per-hand juggling rewards after the step (see the module docstring)."""
     out = []
     for h in (LEFT, RIGHT):
@@ -175,7 +189,7 @@ def hand_rewards(b: Balls, thrown: jax.Array, hands: jax.Array, hand_vel: jax.Ar
         d = jnp.where(pending, jnp.linalg.norm(land - hands[h]), 0.0)
         dh = jnp.where(pending, b.release_h[i] - hands[h, 2], 0.0)
         ok = ~jnp.where(pending, b.missed[i], False)
-        r_catch = 0.1 * jnp.exp(-20.0 * dh ** 2) + 0.9 * ok * (0.9 * jnp.exp(-20.0 * d ** 2) + 0.2 * jnp.exp(-d ** 2))
+        r_catch = 0.1 * jnp.exp(-20.0 * dh**2) + 0.9 * ok * (0.9 * jnp.exp(-20.0 * d**2) + 0.2 * jnp.exp(-(d**2)))
         r_catch = jnp.where(b.released.all(), r_catch, 0.0)
         out.append(jnp.where(threw.any(), r_release, r_catch))
     return jnp.stack(out)
@@ -207,8 +221,9 @@ class JuggleLocation(Location):
         return frame.pos[self._hands], frame.lin_vel[self._hands]
 
     def init(self, rng, frame, start=None):
-        return JuggleGoal(loc=self.new_goal(rng, frame), balls=initial_balls(self.hands(frame)[0]),
-                          t=jnp.zeros((), jnp.int32))
+        return JuggleGoal(
+            loc=self.new_goal(rng, frame), balls=initial_balls(self.hands(frame)[0]), t=jnp.zeros((), jnp.int32)
+        )
 
     def observe(self, goal: JuggleGoal, frame) -> jax.Array:
         b = goal.balls
@@ -225,23 +240,36 @@ class JuggleLocation(Location):
 
     def step(self, goal: JuggleGoal, prev, frame, rng, power=None) -> TaskStep:
         hands, hand_vel = self.hands(frame)
-        balls, thrown, caught, forced = step_balls(goal.balls, goal.t, hands, hand_vel, self.env.dt,
-                                                   flight=not self._physical)
+        balls, thrown, caught, forced = step_balls(
+            goal.balls, goal.t, hands, hand_vel, self.env.dt, flight=not self._physical
+        )
         r = hand_rewards(balls, thrown, hands, hand_vel, goal.t, self.env.dt, self._v_star).mean()
         loc = super().step(goal.loc, prev, frame, rng)
         # |v_z - v*| of this step's release (the hand that threw; 0 when none did).
         thrower = jnp.where(thrown.any(), 1 - jnp.max(jnp.where(thrown, balls.to_hand, 0)), 0)
-        info = dict(loc.info, throws=thrown.sum(), catches=caught.sum(), misses=forced.sum(),
-                    release_error=jnp.where(thrown.any(), jnp.abs(hand_vel[thrower, 2] - self._v_star), 0.0))
-        return TaskStep(goal=JuggleGoal(loc=loc.goal, balls=balls, t=goal.t + 1),
-                        rewards=jnp.concatenate([r[None], loc.rewards]), terminated=loc.terminated, info=info)
+        info = dict(
+            loc.info,
+            throws=thrown.sum(),
+            catches=caught.sum(),
+            misses=forced.sum(),
+            release_error=jnp.where(thrown.any(), jnp.abs(hand_vel[thrower, 2] - self._v_star), 0.0),
+        )
+        return TaskStep(
+            goal=JuggleGoal(loc=loc.goal, balls=balls, t=goal.t + 1),
+            rewards=jnp.concatenate([r[None], loc.rewards]),
+            terminated=loc.terminated,
+            info=info,
+        )
 
     def sense(self, goal: JuggleGoal, props) -> JuggleGoal:
         """Free balls where the physics flew them; held balls stay with their hand."""
         b = goal.balls
         free = (b.holder < 0)[:, None]
-        return goal.replace(balls=b.replace(pos=jnp.where(free, props.qpos[:, :3], b.pos),
-                                            vel=jnp.where(free, props.qvel[:, :3], b.vel)))
+        return goal.replace(
+            balls=b.replace(
+                pos=jnp.where(free, props.qpos[:, :3], b.pos), vel=jnp.where(free, props.qvel[:, :3], b.vel)
+            )
+        )
 
     def place(self, goal: JuggleGoal, props):
         """Every ball where the task has it: held and just-thrown balls at the hand with its
@@ -266,8 +294,9 @@ class JuggleLocation(Location):
         out["catches_per_throw"] = float(catches / (catches + misses)) if catches + misses else float("nan")
         out["catches"], out["misses"] = int(catches), int(misses)
         throws = (np.asarray(info["throws"]) * alive).sum()
-        out["release_speed_error_m_s"] = (float((np.asarray(info["release_error"]) * alive).sum() / throws)
-                                          if throws else float("nan"))
+        out["release_speed_error_m_s"] = (
+            float((np.asarray(info["release_error"]) * alive).sum() / throws) if throws else float("nan")
+        )
         out["longest_streak"] = longest_streak(np.asarray(info["catches"]) * alive, np.asarray(info["misses"]) * alive)
         return out
 

@@ -79,6 +79,7 @@ class AimConfig:
     weight: float = 0.25
     """ω of the aim objective."""
 
+
 _EPS = 1e-6
 
 
@@ -167,8 +168,11 @@ class Location(Task):
         """The target moves by ``move``; the timer is held at its longest, and the overshoot
         measure restarts from the current distance, so the user's target stays."""
         target = goal.target + move
-        return goal.replace(target=target, timer=jnp.full_like(goal.timer, self.cfg.location.timer_range[1]),
-                            dist0=jnp.linalg.norm(target - root_xy(frame)))
+        return goal.replace(
+            target=target,
+            timer=jnp.full_like(goal.timer, self.cfg.location.timer_range[1]),
+            dist0=jnp.linalg.norm(target - root_xy(frame)),
+        )
 
     def markers(self, goal: LocationGoal, frame) -> dict[str, jax.Array]:
         p = jnp.concatenate([goal.target, jnp.full((1,), 0.1)])  # a ball lying on the floor
@@ -176,10 +180,12 @@ class Location(Task):
 
     def summary(self, info, alive):
         ended = (info["goal_ended"] & alive).sum()
-        out = {"mean_distance_m": float(info["distance"][alive].mean()) if alive.any() else float("nan"),
-               "goals_ended": int(ended),
-               "success_rate": float((info["goal_reached"] & alive).sum() / ended) if ended else float("nan"),
-               "time_inside_radius": float(info["inside"][alive].mean()) if alive.any() else float("nan")}
+        out = {
+            "mean_distance_m": float(info["distance"][alive].mean()) if alive.any() else float("nan"),
+            "goals_ended": int(ended),
+            "success_rate": float((info["goal_reached"] & alive).sum() / ended) if ended else float("nan"),
+            "time_inside_radius": float(info["inside"][alive].mean()) if alive.any() else float("nan"),
+        }
         return out
 
 
@@ -208,10 +214,12 @@ class Heading(Task):
         k_t, k_s, k_a = jax.random.split(rng, 3)
         turn = jnp.deg2rad(c.turn_deg)
         ang = heading_angle(frame) + jax.random.uniform(k_a, (), minval=-turn, maxval=turn)
-        return HeadingGoal(direction=jnp.stack([jnp.cos(ang), jnp.sin(ang)]),
-                           speed=jax.random.uniform(k_s, (), minval=c.speed_range[0], maxval=c.speed_range[1]),
-                           timer=jax.random.randint(k_t, (), c.timer_range[0], c.timer_range[1]),
-                           age=jnp.zeros((), jnp.int32))
+        return HeadingGoal(
+            direction=jnp.stack([jnp.cos(ang), jnp.sin(ang)]),
+            speed=jax.random.uniform(k_s, (), minval=c.speed_range[0], maxval=c.speed_range[1]),
+            timer=jax.random.randint(k_t, (), c.timer_range[0], c.timer_range[1]),
+            age=jnp.zeros((), jnp.int32),
+        )
 
     def init(self, rng, frame, start=None):
         return self.new_goal(rng, frame)
@@ -226,8 +234,11 @@ class Heading(Task):
         speed = jnp.linalg.norm(v)
         cos = jnp.sum(v * goal.direction) / jnp.maximum(speed, _EPS)
         err_deg = jnp.rad2deg(jnp.arccos(jnp.clip(cos, -1.0, 1.0)))
-        info = {"heading_error_deg": err_deg, "speed_error": jnp.abs(speed - goal.speed),
-                "settled": goal.age >= self.cfg.heading.settle_steps}
+        info = {
+            "heading_error_deg": err_deg,
+            "speed_error": jnp.abs(speed - goal.speed),
+            "settled": goal.age >= self.cfg.heading.settle_steps,
+        }
         kept = goal.replace(timer=goal.timer - 1, age=goal.age + 1)
         goal = jax.tree.map(lambda a, b: jnp.where(kept.timer <= 0, a, b), self.new_goal(rng, frame), kept)
         return TaskStep(goal=goal, rewards=r[None], terminated=jnp.zeros((), bool), info=info)
@@ -237,8 +248,11 @@ class Heading(Task):
         trained range)."""
         lo, hi = self.cfg.heading.speed_range
         speed = jnp.clip(goal.speed + jnp.sum(move * goal.direction), lo, hi)
-        return goal.replace(direction=rotate_z(goal.direction, turn), speed=speed,
-                            timer=jnp.full_like(goal.timer, self.cfg.heading.timer_range[1]))
+        return goal.replace(
+            direction=rotate_z(goal.direction, turn),
+            speed=speed,
+            timer=jnp.full_like(goal.timer, self.cfg.heading.timer_range[1]),
+        )
 
     def markers(self, goal: HeadingGoal, frame) -> dict[str, jax.Array]:
         """A blue arrow on the floor from the root along the heading, 0.5 s of the target speed long."""
@@ -250,8 +264,10 @@ class Heading(Task):
         m = alive & info["settled"]
         if not m.any():
             return {"heading_error_deg": float("nan"), "speed_error_m_s": float("nan")}
-        return {"heading_error_deg": float(info["heading_error_deg"][m].mean()),
-                "speed_error_m_s": float(info["speed_error"][m].mean())}
+        return {
+            "heading_error_deg": float(info["heading_error_deg"][m].mean()),
+            "speed_error_m_s": float(info["speed_error"][m].mean()),
+        }
 
 
 @struct.dataclass
@@ -281,7 +297,9 @@ class AimLocation(Location):
         c = self.cfg.aim
         k_y, k_p = jax.random.split(rng)
         d = loc.target - root_xy(frame)
-        yaw = jnp.arctan2(d[1], d[0]) + jnp.deg2rad(jax.random.uniform(k_y, (), minval=c.yaw_deg[0], maxval=c.yaw_deg[1]))
+        yaw = jnp.arctan2(d[1], d[0]) + jnp.deg2rad(
+            jax.random.uniform(k_y, (), minval=c.yaw_deg[0], maxval=c.yaw_deg[1])
+        )
         pitch = jnp.deg2rad(jax.random.uniform(k_p, (), minval=c.pitch_deg[0], maxval=c.pitch_deg[1]))
         return jnp.stack([jnp.cos(pitch) * jnp.cos(yaw), jnp.cos(pitch) * jnp.sin(yaw), jnp.sin(pitch)])
 
@@ -314,8 +332,12 @@ class AimLocation(Location):
         loc = super().step(goal.loc, prev, frame, k_l)
         aim = jnp.where(loc.info["goal_ended"], self.new_aim(k_a, loc.goal, frame), goal.aim)
         info = dict(loc.info, aim_error_deg=ang, aiming=~inside)
-        return TaskStep(goal=AimGoal(loc=loc.goal, aim=aim), rewards=jnp.concatenate([loc.rewards, r_aim[None]]),
-                        terminated=loc.terminated, info=info)
+        return TaskStep(
+            goal=AimGoal(loc=loc.goal, aim=aim),
+            rewards=jnp.concatenate([loc.rewards, r_aim[None]]),
+            terminated=loc.terminated,
+            info=info,
+        )
 
     def steer(self, goal: AimGoal, frame, move, turn) -> AimGoal:
         return AimGoal(loc=super().steer(goal.loc, frame, move, turn), aim=rotate_z(goal.aim, turn))

@@ -64,6 +64,7 @@ class TennisConfig:
     """ω of the reach reward exp(-4 d^2), d the racket head's distance to the ball before it is
     hit (our shaping; 0 leaves the paper's outcome-only reward)."""
 
+
 G = 9.81
 
 
@@ -91,7 +92,7 @@ def hit_reward(vel: jax.Array, landing: jax.Array, target: jax.Array, v_star: fl
     """0.5 min(|v| / v*, 1) + 0.5 exp(-|landing - target|^2 / 2 sigma^2)."""
     speed = jnp.linalg.norm(vel)
     d2 = jnp.sum((landing - target) ** 2)
-    return 0.5 * jnp.minimum(speed / v_star, 1.0) + 0.5 * jnp.exp(-d2 / (2 * sigma ** 2))
+    return 0.5 * jnp.minimum(speed / v_star, 1.0) + 0.5 * jnp.exp(-d2 / (2 * sigma**2))
 
 
 class Tennis(Task):
@@ -107,11 +108,15 @@ class Tennis(Task):
         super().__init__(cfg, env)
         pc = env.cfg.physics
         if not (pc.racket and len(pc.props) == 1):
-            raise ValueError("the tennis task needs a racket and one ball in the scene: "
-                             "env.physics.sword_shield=true, racket=true, props=(PropConfig(),)")
+            raise ValueError(
+                "the tennis task needs a racket and one ball in the scene: "
+                "env.physics.sword_shield=true, racket=true, props=(PropConfig(),)"
+            )
         if pc.sim_hz < 240:
-            raise ValueError(f"the tennis ball passes through the racket at {pc.sim_hz:g} Hz "
-                             "(physics/props.py): set env.physics.sim_hz=240 or more")
+            raise ValueError(
+                f"the tennis ball passes through the racket at {pc.sim_hz:g} Hz "
+                "(physics/props.py): set env.physics.sim_hz=240 or more"
+            )
         self._racket = env.character.body_index("sword")
         self._radius = pc.props[0].radius
 
@@ -138,25 +143,44 @@ class Tennis(Task):
     def init(self, rng, frame, start=None) -> TennisGoal:
         pos, vel, target = self._feed(rng, frame)
         f = jnp.zeros((), bool)
-        return TennisGoal(t=jnp.zeros((), jnp.int32), target=target, ball_pos=pos, ball_vel=vel,
-                          force=jnp.zeros(()), hit=f, paid=f, feed=jnp.ones((), bool))
+        return TennisGoal(
+            t=jnp.zeros((), jnp.int32),
+            target=target,
+            ball_pos=pos,
+            ball_vel=vel,
+            force=jnp.zeros(()),
+            hit=f,
+            paid=f,
+            feed=jnp.ones((), bool),
+        )
 
     def sense(self, goal: TennisGoal, props: Props) -> TennisGoal:
-        return goal.replace(ball_pos=props.qpos[0, :3], ball_vel=props.qvel[0, :3],
-                            force=props.force[0] if props.force.shape[0] else jnp.zeros(()))
+        return goal.replace(
+            ball_pos=props.qpos[0, :3],
+            ball_vel=props.qvel[0, :3],
+            force=props.force[0] if props.force.shape[0] else jnp.zeros(()),
+        )
 
     def place(self, goal: TennisGoal, props: Props) -> Props:
         qpos = jnp.concatenate([goal.ball_pos, jnp.asarray([1.0, 0.0, 0.0, 0.0])])
         qvel = jnp.concatenate([goal.ball_vel, jnp.zeros(3)])
-        return props.replace(qpos=jnp.where(goal.feed, qpos[None], props.qpos),
-                             qvel=jnp.where(goal.feed, qvel[None], props.qvel))
+        return props.replace(
+            qpos=jnp.where(goal.feed, qpos[None], props.qpos), qvel=jnp.where(goal.feed, qvel[None], props.qvel)
+        )
 
     def observe(self, goal: TennisGoal, frame) -> jax.Array:
         ground = jnp.concatenate([root_xy(frame), jnp.zeros((1,))])
         target = to_heading(frame, jnp.concatenate([goal.target, jnp.zeros(1)]) - ground)[:2] / 10.0
         phase = goal.t.astype(jnp.float32) / self.cfg.tennis.feed_every
-        return jnp.concatenate([to_heading(frame, goal.ball_pos - ground), to_heading(frame, goal.ball_vel),
-                                target, phase[None], goal.hit.astype(jnp.float32)[None]])
+        return jnp.concatenate(
+            [
+                to_heading(frame, goal.ball_pos - ground),
+                to_heading(frame, goal.ball_vel),
+                target,
+                phase[None],
+                goal.hit.astype(jnp.float32)[None],
+            ]
+        )
 
     def step(self, goal: TennisGoal, prev, frame, rng, power=None) -> TaskStep:
         c = self.cfg.tennis
@@ -164,22 +188,35 @@ class Tennis(Task):
         hit = goal.hit | touching
         released = hit & ~goal.paid & ~touching
         landing = landing_point(goal.ball_pos, goal.ball_vel, self._radius)
-        r_hit = jnp.where(released, hit_reward(goal.ball_vel, landing, goal.target, c.target_speed,
-                                               c.landing_sigma), 0.0)
+        r_hit = jnp.where(
+            released, hit_reward(goal.ball_vel, landing, goal.target, c.target_speed, c.landing_sigma), 0.0
+        )
         reach_d = jnp.linalg.norm(self.head(frame) - goal.ball_pos)
-        r_reach = jnp.where(hit, 1.0, jnp.exp(-4.0 * reach_d ** 2))
+        r_reach = jnp.where(hit, 1.0, jnp.exp(-4.0 * reach_d**2))
         t = goal.t + 1
         fed = t >= c.feed_every
         pos, vel, target = self._feed(rng, frame)
-        nxt = TennisGoal(t=jnp.where(fed, 0, t), target=jnp.where(fed, target, goal.target),
-                         ball_pos=jnp.where(fed, pos, goal.ball_pos), ball_vel=jnp.where(fed, vel, goal.ball_vel),
-                         force=goal.force, hit=hit & ~fed, paid=(goal.paid | released) & ~fed, feed=fed)
+        nxt = TennisGoal(
+            t=jnp.where(fed, 0, t),
+            target=jnp.where(fed, target, goal.target),
+            ball_pos=jnp.where(fed, pos, goal.ball_pos),
+            ball_vel=jnp.where(fed, vel, goal.ball_vel),
+            force=goal.force,
+            hit=hit & ~fed,
+            paid=(goal.paid | released) & ~fed,
+            feed=fed,
+        )
         speed = jnp.linalg.norm(goal.ball_vel)
         # Each ball is counted when its feed_every steps are over: fed, and hit or not.
-        info = dict(fed=fed.astype(jnp.float32), hits=(fed & hit).astype(jnp.float32),
-                    released=released.astype(jnp.float32), out_speed=jnp.where(released, speed, 0.0),
-                    landing_error=jnp.where(released, jnp.linalg.norm(landing - goal.target), 0.0),
-                    reach_m=jnp.where(hit, 0.0, reach_d), unhit=(~hit).astype(jnp.float32))
+        info = dict(
+            fed=fed.astype(jnp.float32),
+            hits=(fed & hit).astype(jnp.float32),
+            released=released.astype(jnp.float32),
+            out_speed=jnp.where(released, speed, 0.0),
+            landing_error=jnp.where(released, jnp.linalg.norm(landing - goal.target), 0.0),
+            reach_m=jnp.where(hit, 0.0, reach_d),
+            unhit=(~hit).astype(jnp.float32),
+        )
         return TaskStep(goal=nxt, rewards=jnp.stack([r_hit, r_reach]), terminated=jnp.zeros((), bool), info=info)
 
     def summary(self, info, alive):
@@ -187,11 +224,17 @@ class Tennis(Task):
         total = lambda k: float((np.asarray(info[k]) * a).sum())
         fed, hits, rel = total("fed"), total("hits"), total("released")
         # Balls whose feed_every steps ran out within the episode (the last one may not have).
-        out = {"balls": int(fed), "hits": int(hits), "hit_rate": hits / fed if fed else float("nan"),
-               "out_speed_m_s": total("out_speed") / rel if rel else float("nan"),
-               "landing_error_m": total("landing_error") / rel if rel else float("nan")}
+        out = {
+            "balls": int(fed),
+            "hits": int(hits),
+            "hit_rate": hits / fed if fed else float("nan"),
+            "out_speed_m_s": total("out_speed") / rel if rel else float("nan"),
+            "landing_error_m": total("landing_error") / rel if rel else float("nan"),
+        }
         unhit = np.asarray(info["unhit"]) * a
-        out["reach_m"] = float((np.asarray(info["reach_m"]) * unhit).sum() / unhit.sum()) if unhit.sum() else float("nan")
+        out["reach_m"] = (
+            float((np.asarray(info["reach_m"]) * unhit).sum() / unhit.sum()) if unhit.sum() else float("nan")
+        )
         return out
 
     def markers(self, goal: TennisGoal, frame) -> dict[str, jax.Array]:

@@ -129,11 +129,13 @@ class Track(Task):
     def errors(self, ref: O.LinkFrames, frame: O.LinkFrames) -> dict[str, jax.Array]:
         """Per-body position error (m) and the four mean squared errors of the reward."""
         body = jnp.linalg.norm(ref.pos - frame.pos, axis=-1)
-        return {"body": body,
-                "pos": jnp.mean(jnp.square(ref.pos - frame.pos)),
-                "rot": jnp.mean(jnp.square(R.quat_angle_between(frame.quat, ref.quat))),
-                "vel": jnp.mean(jnp.square(ref.lin_vel - frame.lin_vel)),
-                "ang": jnp.mean(jnp.square(ref.ang_vel - frame.ang_vel))}
+        return {
+            "body": body,
+            "pos": jnp.mean(jnp.square(ref.pos - frame.pos)),
+            "rot": jnp.mean(jnp.square(R.quat_angle_between(frame.quat, ref.quat))),
+            "vel": jnp.mean(jnp.square(ref.lin_vel - frame.lin_vel)),
+            "ang": jnp.mean(jnp.square(ref.ang_vel - frame.ang_vel)),
+        }
 
     def imitation_reward(self, e: dict[str, jax.Array]) -> jax.Array:
         c = self.cfg.track
@@ -156,11 +158,18 @@ class Track(Task):
         if c.energy_coef and power is not None:
             info["energy"] = c.energy_coef * power
             reward = reward - info["energy"]
-        return TaskStep(goal=goal.replace(time=t), rewards=reward[None],
-                        terminated=far > c.termination_distance, info=info, truncated=ended)
+        return TaskStep(
+            goal=goal.replace(time=t),
+            rewards=reward[None],
+            terminated=far > c.termination_distance,
+            info=info,
+            truncated=ended,
+        )
 
     def summary(self, info, alive):
         if not alive.any():
             return {"body_error_m": float("nan"), "max_error_m": float("nan")}
-        return {"body_error_m": float(info["body_error_m"][alive].mean()),
-                "max_error_m": float(info["max_error_m"][alive].mean())}
+        return {
+            "body_error_m": float(info["body_error_m"][alive].mean()),
+            "max_error_m": float(info["max_error_m"][alive].mean()),
+        }

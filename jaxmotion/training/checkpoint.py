@@ -69,8 +69,9 @@ def save(mgr: ocp.CheckpointManager, step: int, state: Any) -> None:
     mgr.wait_until_finished()
 
 
-def restore(mgr: ocp.CheckpointManager, like: Any, step: int | None = None,
-            skip: tuple[str, ...] = ()) -> tuple[Any, int]:
+def restore(
+    mgr: ocp.CheckpointManager, like: Any, step: int | None = None, skip: tuple[str, ...] = ()
+) -> tuple[Any, int]:
     """Restores the latest (or given) checkpoint into the structure and shardings of ``like``;
     leaves whose key starts with one of ``skip`` (and those a slim checkpoint left out) keep
     ``like``'s values."""

@@ -161,8 +161,11 @@ class Learner:
             raise ValueError("player_policies=separate needs a two-player scene (env.players=2) and no meta policy")
         if cfg.opponent_pool and self.separate:
             raise ValueError("opponent_pool needs player_policies=shared")
-        self.pool = OpponentPool(cfg.opponent_pool, cfg.opponent_share, cfg.opponent_every, cfg.ppo.num_envs,
-                                 self.players) if cfg.opponent_pool > 0 else None
+        self.pool = (
+            OpponentPool(cfg.opponent_pool, cfg.opponent_share, cfg.opponent_every, cfg.ppo.num_envs, self.players)
+            if cfg.opponent_pool > 0
+            else None
+        )
         task = self.env.task
         self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)
         n_obj = len(self.objective_names)
@@ -170,8 +173,10 @@ class Learner:
         if cfg.ppo.objective_weights:
             w = np.asarray(cfg.ppo.objective_weights, np.float64)
             if len(w) != n_obj or np.any(w < 0) or w.sum() <= 0:
-                raise ValueError(f"objective_weights must be {n_obj} non-negative numbers (for "
-                                 f"{', '.join(self.objective_names)}), got {cfg.ppo.objective_weights}")
+                raise ValueError(
+                    f"objective_weights must be {n_obj} non-negative numbers (for "
+                    f"{', '.join(self.objective_names)}), got {cfg.ppo.objective_weights}"
+                )
         else:
             w = combine_weights(tuple(g.weight for g in cfg.env.groups), task.weights())
         self.reward_weights = jnp.asarray(w / w.sum(), jnp.float32)
@@ -179,24 +184,41 @@ class Learner:
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
         nc = cfg.net
         self.meta = meta
-        pol = dict(hidden_sizes=nc.policy_hidden, activation=nc.activation, state_dependent_std=nc.state_dependent_std,
-                   init_log_std=nc.init_log_std)
-        self.policy = (IncrementalPolicy(self.env.obs_size, self.env.action_size, meta.act, nc.meta_weight_bias, **pol)
-                       if meta is not None else GaussianPolicy(self.env.obs_size, self.env.action_size, **pol))
+        pol = dict(
+            hidden_sizes=nc.policy_hidden,
+            activation=nc.activation,
+            state_dependent_std=nc.state_dependent_std,
+            init_log_std=nc.init_log_std,
+        )
+        self.policy = (
+            IncrementalPolicy(self.env.obs_size, self.env.action_size, meta.act, nc.meta_weight_bias, **pol)
+            if meta is not None
+            else GaussianPolicy(self.env.obs_size, self.env.action_size, **pol)
+        )
         self.critic = nets.make_critic_network(
-            self.env.obs_size, self.num_objectives, hidden_sizes=nc.critic_hidden, activation=nc.activation,
-            hidden_init_scale=nc.critic_hidden_init)
-        self.discs = tuple(nets.make_discriminator_network(d, nc.disc_heads, hidden_sizes=nc.disc_hidden,
-                                                           hidden_gain=nc.disc_hidden_gain)
-                           for d in self.env.disc_obs_sizes())
+            self.env.obs_size,
+            self.num_objectives,
+            hidden_sizes=nc.critic_hidden,
+            activation=nc.activation,
+            hidden_init_scale=nc.critic_hidden_init,
+        )
+        self.discs = tuple(
+            nets.make_discriminator_network(
+                d, nc.disc_heads, hidden_sizes=nc.disc_hidden, hidden_gain=nc.disc_hidden_gain
+            )
+            for d in self.env.disc_obs_sizes()
+        )
         pc = cfg.ppo
-        self.optimizer = PPO.make_optimizer(pc.max_grad_norm, pc.actor_lr, pc.critic_lr,
-                                            pc.meta_weight_lr if self.policy.weight_size else 0.0)
+        self.optimizer = PPO.make_optimizer(
+            pc.max_grad_norm, pc.actor_lr, pc.critic_lr, pc.meta_weight_lr if self.policy.weight_size else 0.0
+        )
         self.disc_optimizer = optax.adam(cfg.disc.lr)
         self.hard_negatives = cfg.hard_negatives_every > 0
         if self.hard_negatives and not task.mines_clips:
-            raise ValueError(f"hard_negatives_every needs a task that resets to clips it tracks (env.task.name=track), "
-                             f"not {cfg.env.task.name!r}")
+            raise ValueError(
+                f"hard_negatives_every needs a task that resets to clips it tracks (env.task.name=track), "
+                f"not {cfg.env.task.name!r}"
+            )
         # The configured loss's floor; the class attribute below is the default (hinge) one.
         self.MIN_REWARD = D.MIN_REWARD[cfg.disc.loss]
         self._check_batch()
@@ -215,7 +237,8 @@ class Learner:
             raise ValueError(
                 f"ppo.terminate_reward ({pc.terminate_reward}) must be below the lowest reward an "
                 f"objective pays ({low}); otherwise a fall is worth as much as staying up "
-                f"with every reward at its floor")
+                f"with every reward at its floor"
+            )
 
     def _check_batch(self):
         pc = self.cfg.ppo
@@ -225,16 +248,23 @@ class Learner:
             if n < max(pc.minibatch_size, self.cfg.disc.minibatch_size if self.discs else 0):
                 raise ValueError(f"the learner's {n} samples per iteration are fewer than a minibatch")
         elif n % pc.minibatch_size or (self.discs and n % self.cfg.disc.minibatch_size):
-            raise ValueError(f"num_envs*horizon*players ({n}) must be a multiple of the minibatch sizes "
-                             f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})")
+            raise ValueError(
+                f"num_envs*horizon*players ({n}) must be a multiple of the minibatch sizes "
+                f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})"
+            )
 
     # ---- init ----------------------------------------------------------------------------
     def init_agent(self, k_pol: jax.Array, k_crit: jax.Array) -> dict:
         """One agent's learnable state (the ``AGENT_FIELDS`` of a ``TrainState``)."""
         pp = self.policy.init(k_pol)
         cp = self.critic.init(k_crit)
-        return dict(policy_params=pp, critic_params=cp, opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
-                    obs_norm=N.normalizer_init(self.body_obs_size), popart=PA.popart_init(self.num_objectives))
+        return dict(
+            policy_params=pp,
+            critic_params=cp,
+            opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
+            obs_norm=N.normalizer_init(self.body_obs_size),
+            popart=PA.popart_init(self.num_objectives),
+        )
 
     def init(self, rng: jax.Array) -> TrainState:
         """A fresh TrainState (un-sharded; see ``loop.shard_state``), compiled once per learner:
@@ -249,35 +279,42 @@ class Learner:
         k_env, k_pol, k_crit, k_disc, rng = jax.random.split(rng, 5)
         env_state, obs = jax.vmap(self.env.reset)(jax.random.split(k_env, self.cfg.ppo.num_envs))
         if self.separate:  # one agent per player, independently initialised
-            agent = jax.vmap(self.init_agent)(jax.random.split(k_pol, self.players),
-                                              jax.random.split(k_crit, self.players))
+            agent = jax.vmap(self.init_agent)(
+                jax.random.split(k_pol, self.players), jax.random.split(k_crit, self.players)
+            )
         else:
             agent = self.init_agent(k_pol, k_crit)
         dps = tuple(d.init(k) for d, k in zip(self.discs, jax.random.split(k_disc, len(self.discs))))
         return TrainState(
-            env_state=env_state, obs=obs, disc_params=dps,
+            env_state=env_state,
+            obs=obs,
+            disc_params=dps,
             disc_opt_state=tuple(self.disc_optimizer.init(p) for p in dps),
             disc_norm=tuple(N.normalizer_init(d) for d in self.env.disc_obs_sizes()),
-            rng=rng, iteration=jnp.zeros((), jnp.int32), **agent,
+            rng=rng,
+            iteration=jnp.zeros((), jnp.int32),
+            **agent,
             meta=None if self.meta is None else self.meta.state,
             clip_fails=jnp.zeros((self.env.init_lib.num_clips,), jnp.int32) if self.hard_negatives else None,
             # A copy: the chunk donates the state, which must not delete the library's own array.
             clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None,
-            pool=self.pool.init(agent["policy_params"], agent["obs_norm"]) if self.pool else None)
+            pool=self.pool.init(agent["policy_params"], agent["obs_norm"]) if self.pool else None,
+        )
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
         """The body-state features normalised (and clipped), the goal features after them raw."""
-        body = N.normalize(norm, obs[..., :self.body_obs_size], self.cfg.ppo.obs_clip)
-        return jnp.concatenate([body, obs[..., self.body_obs_size:]], -1)
+        body = N.normalize(norm, obs[..., : self.body_obs_size], self.cfg.ppo.obs_clip)
+        return jnp.concatenate([body, obs[..., self.body_obs_size :]], -1)
 
     def policy_weights(self, ts: TrainState | PolicyState, obs: jax.Array) -> jax.Array:
         """The policy's composition weights [B, W] at raw observations (``Policy.weights``: the
         incremental policy's w per DoF; [B, 0] for a plain policy)."""
         return self.policy.weights(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))
 
-    def act(self, ts: TrainState | PolicyState, obs: jax.Array,
-            rng: jax.Array | None) -> tuple[jax.Array, jax.Array, jax.Array]:
+    def act(
+        self, ts: TrainState | PolicyState, obs: jax.Array, rng: jax.Array | None
+    ) -> tuple[jax.Array, jax.Array, jax.Array]:
         """Samples (or, with ``rng=None``, takes the mean) action [B, A], its log-prob [B] and the
         meta action it builds on ([B, A]; [B, 0] without a meta policy). ``ts``: anything with
         ``policy_params``, ``obs_norm`` and ``meta``. With separate player policies ``obs`` is
@@ -289,8 +326,9 @@ class Learner:
             sub = PolicyState(policy_params=policy_params, obs_norm=obs_norm, meta=None)
             return self._act(sub, o, None if rng is None else jax.random.fold_in(rng, p))
 
-        a, logp, a_meta = jax.vmap(one)(ts.policy_params, ts.obs_norm, jnp.moveaxis(obs, -2, 0),
-                                        jnp.arange(self.players))
+        a, logp, a_meta = jax.vmap(one)(
+            ts.policy_params, ts.obs_norm, jnp.moveaxis(obs, -2, 0), jnp.arange(self.players)
+        )
         return jnp.moveaxis(a, 0, -2), jnp.moveaxis(logp, 0, -1), jnp.moveaxis(a_meta, 0, -2)
 
     def _act(self, ts, obs, rng):
@@ -308,8 +346,9 @@ class Learner:
         step = jax.vmap(self.env.step)
         if mesh is None or mesh.size == 1:
             return step
-        return jax.shard_map(step, mesh=mesh, in_specs=(P("data"), P("data"), P("data")),
-                             out_specs=P("data"), check_vma=False)
+        return jax.shard_map(
+            step, mesh=mesh, in_specs=(P("data"), P("data"), P("data")), out_specs=P("data"), check_vma=False
+        )
 
     def rollout(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, Transition]:
         """Unrolls the policy for ``horizon`` control steps in every environment: [T, B, ...]
@@ -322,8 +361,9 @@ class Learner:
         """
         batch_step = self.batch_step(mesh)
         rng, key, k_pool = jax.random.split(ts.rng, 3)
-        pool = jax.vmap(self.env.reset, in_axes=(0, None))(jax.random.split(k_pool, self.cfg.ppo.num_envs),
-                                                           ts.clip_weights)
+        pool = jax.vmap(self.env.reset, in_axes=(0, None))(
+            jax.random.split(k_pool, self.cfg.ppo.num_envs), ts.clip_weights
+        )
 
         def step(carry, key):
             env_state, obs, opp = carry
@@ -333,9 +373,19 @@ class Learner:
             env_state, out = batch_step(env_state, action, pool)
             if self.pool is not None:
                 opp = self.pool.redraw(opp, jnp.any(out.terminated | out.truncated, -1), jax.random.fold_in(key, 3))
-            tr = Transition(obs=obs, action=action, log_prob=logp, extra=a_meta, final_obs=out.final_obs,
-                            disc_obs=out.disc_obs, terminated=out.terminated, truncated=out.truncated,
-                            unstable=out.unstable, task_reward=out.task_reward, info=out.info)
+            tr = Transition(
+                obs=obs,
+                action=action,
+                log_prob=logp,
+                extra=a_meta,
+                final_obs=out.final_obs,
+                disc_obs=out.disc_obs,
+                terminated=out.terminated,
+                truncated=out.truncated,
+                unstable=out.unstable,
+                task_reward=out.task_reward,
+                info=out.info,
+            )
             return (env_state, out.obs, opp), tr
 
         keys = jax.random.split(key, self.cfg.ppo.horizon)
@@ -352,20 +402,21 @@ class Learner:
         k_perm, k_gp = jax.random.split(rng)
         n = pol.shape[0]
         nmb = n // dc.minibatch_size
-        perm = jax.random.permutation(k_perm, n)[:nmb * dc.minibatch_size]
+        perm = jax.random.permutation(k_perm, n)[: nmb * dc.minibatch_size]
         mb = lambda x: N.normalize(norm, x[perm], None).reshape(nmb, dc.minibatch_size, -1)
 
         def body(carry, xs):
             p, o = carry
             x_pol, x_ref, k = xs
             (_, m), grads = jax.value_and_grad(D.disc_loss, argnums=1, has_aux=True)(
-                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode, net.head_grad_sq_norms,
-                dc.loss)
+                net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode, net.head_grad_sq_norms, dc.loss
+            )
             updates, o = self.disc_optimizer.update(grads, o, p)
             return (optax.apply_updates(p, updates), o), m
 
         (params, opt_state), metrics = jax.lax.scan(
-            body, (params, opt_state), (mb(pol), mb(ref), jax.random.split(k_gp, nmb)))
+            body, (params, opt_state), (mb(pol), mb(ref), jax.random.split(k_gp, nmb))
+        )
         return params, opt_state, norm, jax.tree.map(jnp.mean, metrics)
 
     def group_rewards(self, ts: TrainState, traj: Transition) -> jax.Array:
@@ -386,9 +437,12 @@ class Learner:
         new_p, new_o, new_n, metrics = [], [], [], {}
         for g, (net, key) in enumerate(zip(self.discs, jax.random.split(k_upd, len(self.discs)))):
             pol = traj.disc_obs[g].reshape(T * B, -1)
-            p, o, n, m = self._update_disc(net, ts.disc_params[g], ts.disc_opt_state[g], ts.disc_norm[g],
-                                           pol, refs[g], key)
-            new_p.append(p); new_o.append(o); new_n.append(n)
+            p, o, n, m = self._update_disc(
+                net, ts.disc_params[g], ts.disc_opt_state[g], ts.disc_norm[g], pol, refs[g], key
+            )
+            new_p.append(p)
+            new_o.append(o)
+            new_n.append(n)
             metrics.update({f"disc/{self.cfg.env.groups[g].name}/{k}": v for k, v in m.items()})
         ts = ts.replace(disc_params=tuple(new_p), disc_opt_state=tuple(new_o), disc_norm=tuple(new_n), rng=rng)
         # Rewards come from the updated discriminators, on the same windows (as the authors' code).
@@ -410,8 +464,14 @@ class Learner:
             rewards = (rewards * self.reward_weights).sum(-1, keepdims=True)
         values = self.values(ts, traj.obs)
         rewards, next_values, term, trunc = G.apply_termination(
-            rewards, self.values(ts, traj.final_obs), traj.terminated, traj.truncated,
-            pc.terminate_reward, pc.gamma, pc.absorbing_termination)
+            rewards,
+            self.values(ts, traj.final_obs),
+            traj.terminated,
+            traj.truncated,
+            pc.terminate_reward,
+            pc.gamma,
+            pc.absorbing_termination,
+        )
         adv, returns = G.compute_gae(rewards, values, next_values, term, trunc, pc.gamma, pc.lam)
         metrics = {}
         if pc.popart:
@@ -426,16 +486,31 @@ class Learner:
         _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights)
         nobs = self.normalize_obs(ts.obs_norm, flat(traj.obs))
         # The policy also sees what it conditioned on when acting (a [N, 0] array for a plain policy).
-        batch = PPO.PPOBatch(obs={"x": nobs, "extra": flat(traj.extra)}, actions=flat(traj.action),
-                             log_probs=flat(traj.log_prob), advantages=std_adv, returns=flat(returns))
+        batch = PPO.PPOBatch(
+            obs={"x": nobs, "extra": flat(traj.extra)},
+            actions=flat(traj.action),
+            log_probs=flat(traj.log_prob),
+            advantages=std_adv,
+            returns=flat(returns),
+        )
         popart_state = ts.popart if pc.popart else None
         policy_apply = lambda p, o: self.policy.dist(p, o["x"], o["extra"])
         critic_apply = lambda p, o: self.critic.apply(p, o["x"])
 
         def loss_fn(params, mb):
-            return PPO.ppo_losses(params["actor"], params["critic"], mb, policy_apply, critic_apply,
-                                  self.objective_weights, popart_state, pc.clip_eps, pc.value_coef,
-                                  pc.entropy_coef, pc.per_objective_clip)
+            return PPO.ppo_losses(
+                params["actor"],
+                params["critic"],
+                mb,
+                policy_apply,
+                critic_apply,
+                self.objective_weights,
+                popart_state,
+                pc.clip_eps,
+                pc.value_coef,
+                pc.entropy_coef,
+                pc.per_objective_clip,
+            )
 
         nmb = n // pc.minibatch_size
 
@@ -446,7 +521,7 @@ class Learner:
             return (optax.apply_updates(params, updates), opt_state), m
 
         def epoch(carry, key):
-            perm = jax.random.permutation(key, n)[:nmb * pc.minibatch_size]  # all of it, but with a pool
+            perm = jax.random.permutation(key, n)[: nmb * pc.minibatch_size]  # all of it, but with a pool
             mbs = jax.tree.map(lambda x: x[perm].reshape((nmb, pc.minibatch_size) + x.shape[1:]), batch)
             return jax.lax.scan(sgd_step, carry, mbs)
 
@@ -474,9 +549,11 @@ class Learner:
 
     def update_obs_norm(self, norm: N.NormalizerState, traj: Transition) -> N.NormalizerState:
         """The body-state statistics moved by a rollout's valid (not unstable) observations."""
+
         def upd(norm, obs, unstable):
-            body = obs[..., :self.body_obs_size]
+            body = obs[..., : self.body_obs_size]
             return N.normalizer_update(norm, body.reshape(-1, body.shape[-1]), ~unstable.reshape(-1))
+
         if self.separate:
             return jax.vmap(upd, in_axes=(0, 2, 2))(norm, traj.obs, traj.unstable)
         return upd(norm, traj.obs, traj.unstable)

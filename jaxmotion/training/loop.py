@@ -45,6 +45,7 @@ def make_train_chunk(learner: Learner, mesh: Mesh, chunk: int, example: TrainSta
             ts, m = learner.iteration(ts, mesh)
             ts = jax.lax.with_sharding_constraint(ts, sh)
             return ts, m
+
         return jax.lax.scan(body, ts, None, length=chunk)
 
     return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, None), donate_argnums=0)

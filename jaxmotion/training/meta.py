@@ -38,10 +38,14 @@ def resolve_run(path: str | Path) -> Path:
     p = Path(path)
     if (p / ckpt.CONFIG_FILE).exists():
         return p
-    runs = sorted(d for d in p.glob("*/") if (d / ckpt.CONFIG_FILE).exists() and any((d / "checkpoints").glob("[0-9]*")))
+    runs = sorted(
+        d for d in p.glob("*/") if (d / ckpt.CONFIG_FILE).exists() and any((d / "checkpoints").glob("[0-9]*"))
+    )
     if not runs:
-        raise MetaError(f"meta={path}: neither a run folder (no {ckpt.CONFIG_FILE}) nor a folder of runs "
-                                f"with a checkpoint; train the meta policy first (e.g. make train EXP=goal/location_walk)")
+        raise MetaError(
+            f"meta={path}: neither a run folder (no {ckpt.CONFIG_FILE}) nor a folder of runs "
+            f"with a checkpoint; train the meta policy first (e.g. make train EXP=goal/location_walk)"
+        )
     return runs[-1]
 
 
@@ -55,8 +59,10 @@ def goal_index(meta_parts: tuple[tuple[str, int], ...], parts: tuple[tuple[str, 
     for name, n in meta_parts:
         if name not in offsets or offsets[name][1] != n:
             have = ", ".join(f"{k} ({v[1]})" for k, v in offsets.items()) or "none"
-            raise MetaError(f"the meta policy observes goal block {name!r} ({n} features), which this "
-                             f"task does not have (its blocks: {have})")
+            raise MetaError(
+                f"the meta policy observes goal block {name!r} ({n} features), which this "
+                f"task does not have (its blocks: {have})"
+            )
         idx.extend(range(offsets[name][0], offsets[name][0] + n))
     return np.asarray(idx, np.int32)
 
@@ -71,15 +77,20 @@ class Meta:
         self.run_dir, self.experiment, self.learner = Path(run_dir), experiment, learner
         menv = self.learner.env
         if menv.action_size != env.action_size or menv.character.num_bodies != env.character.num_bodies:
-            raise MetaError(f"meta policy {self.run_dir} drives another character ({menv.action_size} DoF, "
-                             f"{menv.character.num_bodies} bodies; this one: {env.action_size}, "
-                             f"{env.character.num_bodies})")
+            raise MetaError(
+                f"meta policy {self.run_dir} drives another character ({menv.action_size} DoF, "
+                f"{menv.character.num_bodies} bodies; this one: {env.action_size}, "
+                f"{env.character.num_bodies})"
+            )
         if menv.body_obs_size != env.body_obs_size:
-            raise MetaError(f"meta policy {self.run_dir} sees {menv.cfg.policy_frames} frames of body state, "
-                             f"this task {env.cfg.policy_frames}: set env.policy_frames alike")
+            raise MetaError(
+                f"meta policy {self.run_dir} sees {menv.cfg.policy_frames} frames of body state, "
+                f"this task {env.cfg.policy_frames}: set env.policy_frames alike"
+            )
         gidx = goal_index(menv.task.goal_parts, env.task.goal_parts)
-        self.obs_index = jnp.asarray(np.concatenate([np.arange(env.body_obs_size), env.body_obs_size + gidx]),
-                                     jnp.int32)
+        self.obs_index = jnp.asarray(
+            np.concatenate([np.arange(env.body_obs_size), env.body_obs_size + gidx]), jnp.int32
+        )
         self.state = PolicyState(policy_params=ts.policy_params, obs_norm=ts.obs_norm, meta=ts.meta)
         self.iteration = int(ts.iteration)
 

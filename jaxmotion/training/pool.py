@@ -49,8 +49,10 @@ class OpponentPool:
             raise ValueError(f"opponent_every must be at least 1, got {every}")
         bouts = int(round(share * num_envs))
         if not 1 <= bouts < num_envs:
-            raise ValueError(f"opponent_share {share} of {num_envs} bouts gives {bouts} pool bouts; "
-                             f"it must give at least one and leave at least one latest-vs-latest bout")
+            raise ValueError(
+                f"opponent_share {share} of {num_envs} bouts gives {bouts} pool bouts; "
+                f"it must give at least one and leave at least one latest-vs-latest bout"
+            )
         self.size, self.every, self.bouts, self.players = size, every, bouts, players
         b = np.arange(num_envs * players)
         pool_played = (b // players < bouts) & (b % players == 1)
@@ -61,8 +63,12 @@ class OpponentPool:
     def init(self, policy_params, obs_norm) -> PoolState:
         """A pool whose one snapshot (repeated K times) is the untrained policy."""
         stack = lambda x: jnp.broadcast_to(x, (self.size,) + jnp.shape(x)).copy()
-        return PoolState(policy_params=jax.tree.map(stack, policy_params), obs_norm=jax.tree.map(stack, obs_norm),
-                         filled=jnp.ones((), jnp.int32), opponent=jnp.zeros((self.bouts,), jnp.int32))
+        return PoolState(
+            policy_params=jax.tree.map(stack, policy_params),
+            obs_norm=jax.tree.map(stack, obs_norm),
+            filled=jnp.ones((), jnp.int32),
+            opponent=jnp.zeros((self.bouts,), jnp.int32),
+        )
 
     def snapshot(self, pool: PoolState, policy_params, obs_norm, iteration: jax.Array) -> PoolState:
         """After ``iteration`` (counted from 1) iterations: every ``every`` of them the policy goes
@@ -70,23 +76,27 @@ class OpponentPool:
         n = iteration // self.every
         take = (iteration % self.every == 0) & (n > 0)
         slot = n % self.size
-        put = lambda stack, x: jnp.where(take & (jnp.arange(self.size) == slot).reshape((-1,) + (1,) * jnp.ndim(x)),
-                                         x[None], stack)
-        return pool.replace(policy_params=jax.tree.map(put, pool.policy_params, policy_params),
-                            obs_norm=jax.tree.map(put, pool.obs_norm, obs_norm),
-                            filled=jnp.where(take, jnp.minimum(n + 1, self.size), pool.filled))
+        put = lambda stack, x: jnp.where(
+            take & (jnp.arange(self.size) == slot).reshape((-1,) + (1,) * jnp.ndim(x)), x[None], stack
+        )
+        return pool.replace(
+            policy_params=jax.tree.map(put, pool.policy_params, policy_params),
+            obs_norm=jax.tree.map(put, pool.obs_norm, obs_norm),
+            filled=jnp.where(take, jnp.minimum(n + 1, self.size), pool.filled),
+        )
 
     def redraw(self, pool: PoolState, done: jax.Array, rng: jax.Array) -> PoolState:
         """A new member for every pool bout that ended (``done`` [B]: any player's end)."""
         fresh = jax.random.randint(rng, (self.bouts,), 0, pool.filled)
-        return pool.replace(opponent=jnp.where(done[:self.bouts], fresh, pool.opponent))
+        return pool.replace(opponent=jnp.where(done[: self.bouts], fresh, pool.opponent))
 
-    def act(self, act_one: Callable, pool: PoolState, meta: Any, obs: jax.Array, action: jax.Array,
-            rng: jax.Array | None) -> jax.Array:
+    def act(
+        self, act_one: Callable, pool: PoolState, meta: Any, obs: jax.Array, action: jax.Array, rng: jax.Array | None
+    ) -> jax.Array:
         """``action`` [B, P, A] with player 1 of the pool bouts acted by its pool member.
         ``act_one(policy_state, obs, rng)`` is the learner's one-agent act (sampling, or the mean
         when ``rng`` is None); every member acts on those observations and each bout keeps its own's."""
-        o = obs[:self.bouts, 1]
+        o = obs[: self.bouts, 1]
 
         def member(params, norm, k):
             key = None if rng is None else jax.random.fold_in(rng, k)
@@ -94,7 +104,7 @@ class OpponentPool:
 
         every = jax.vmap(member)(pool.policy_params, pool.obs_norm, jnp.arange(self.size))  # [K, n, A]
         mine = jnp.take_along_axis(every, pool.opponent[None, :, None], 0)[0]
-        return action.at[:self.bouts, 1].set(mine)
+        return action.at[: self.bouts, 1].set(mine)
 
     def learner_samples(self, tree):
         """[T, B * P, ...] -> [T, N, ...]: the samples the learner played."""
@@ -102,7 +112,7 @@ class OpponentPool:
 
     def metrics(self, traj, reward_names: tuple[str, ...], pool: PoolState) -> dict:
         """The learner's mean task rewards in the pool bouts (player 0 there), and the pool's size."""
-        r = traj.task_reward[:, 0:self.bouts * self.players:self.players]  # [T, n, R]
+        r = traj.task_reward[:, 0 : self.bouts * self.players : self.players]  # [T, n, R]
         m = {f"pool/{name}": jnp.mean(r[..., i]) for i, name in enumerate(reward_names)}
         m["pool/filled"] = pool.filled
         return m

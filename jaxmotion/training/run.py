@@ -96,9 +96,16 @@ def _trim_metrics(path: Path, upto: int) -> None:
     tmp.replace(path)
 
 
-def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progress: bool = True,
-          tensorboard: bool = True, stop_after_chunks: int | None = None,
-          on_chunk: Callable[[int, dict], None] | None = None, hooks: Sequence[Hook] = ()) -> RunResult:
+def train(
+    experiment: str,
+    cfg: TrainConfig,
+    run_dir: Path | None = None,
+    progress: bool = True,
+    tensorboard: bool = True,
+    stop_after_chunks: int | None = None,
+    on_chunk: Callable[[int, dict], None] | None = None,
+    hooks: Sequence[Hook] = (),
+) -> RunResult:
     """Trains ``cfg`` into ``run_dir`` (resuming when ``cfg.resume`` names a run folder).
 
     ``hooks`` run between chunks (``Hook``): those that change the state before the chunk's
@@ -109,13 +116,17 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         run_dir = Path(cfg.resume)
         _, saved = ckpt.read_config(run_dir, TrainConfig)
         # A resumed run keeps its saved settings; only the length and bookkeeping may change.
-        cfg = dataclasses.replace(saved, iterations=cfg.iterations, resume=cfg.resume,
-                                  checkpoint_every=cfg.checkpoint_every)
+        cfg = dataclasses.replace(
+            saved, iterations=cfg.iterations, resume=cfg.resume, checkpoint_every=cfg.checkpoint_every
+        )
     learner = make_learner(cfg)  # before the run folder exists: bad clips or settings leave nothing behind
     run_dir = Path(run_dir) if run_dir is not None else new_run_dir(experiment)
     phys = learner.env.physics
-    backend = {"backend": phys.name, "device": jax.default_backend(),
-               **({"threads": phys.nthread} if phys.name == "mujoco" else {})}
+    backend = {
+        "backend": phys.name,
+        "device": jax.default_backend(),
+        **({"threads": phys.nthread} if phys.name == "mujoco" else {}),
+    }
     if progress:
         print(f"physics backend: {phys.name} ({', '.join(f'{k} {v}' for k, v in backend.items() if k != 'backend')})")
     mesh = make_mesh()
@@ -140,10 +151,13 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
     writer = None
     if tensorboard:
         from tensorboardX import SummaryWriter
+
         writer = SummaryWriter(str(run_dir / "tb"))
     from tqdm import tqdm
-    bar = tqdm(total=cfg.iterations, initial=start, unit="it", disable=not progress, dynamic_ncols=True,
-               desc=experiment)
+
+    bar = tqdm(
+        total=cfg.iterations, initial=start, unit="it", disable=not progress, dynamic_ncols=True, desc=experiment
+    )
     history: list[dict] = []
     chunks = 0
     while int(ts.iteration) < cfg.iterations:
@@ -156,8 +170,12 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         it0 = int(ts.iteration) - cfg.chunk
         with open(metrics_path, "a") as f:
             for i in range(cfg.chunk):
-                row = {"iteration": it0 + i + 1, "samples": (it0 + i + 1) * cfg.samples_per_iteration,
-                       "steps_per_s": sps, **_scalars(m, i)}
+                row = {
+                    "iteration": it0 + i + 1,
+                    "samples": (it0 + i + 1) * cfg.samples_per_iteration,
+                    "steps_per_s": sps,
+                    **_scalars(m, i),
+                }
                 f.write(json.dumps(row) + "\n")
                 history.append(row)
                 if writer is not None:
@@ -173,8 +191,15 @@ def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, progre
         bar.set_postfix(post, refresh=False)
         bar.update(cfg.chunk)
         done = int(ts.iteration) >= cfg.iterations
-        end = ChunkEnd(run_dir=run_dir, iteration=int(ts.iteration), chunks=chunks, done=done, last=last,
-                       log=functools.partial(_log_row, metrics_path, writer, last), say=bar.write)
+        end = ChunkEnd(
+            run_dir=run_dir,
+            iteration=int(ts.iteration),
+            chunks=chunks,
+            done=done,
+            last=last,
+            log=functools.partial(_log_row, metrics_path, writer, last),
+            say=bar.write,
+        )
         for hook in hooks:
             if hook.before_checkpoint and hook.due(cfg, end):
                 ts = hook.run(learner, ts, end)

@@ -68,8 +68,9 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
     except FileNotFoundError as e:
         raise InitFromError(f"init_from={path}: {e}") from None
     except ValueError as e:  # orbax: a leaf of another shape or a missing leaf
-        raise InitFromError(f"init_from={path} does not fit this experiment's networks or objectives "
-                            f"({str(e).splitlines()[0][:200]})") from None
+        raise InitFromError(
+            f"init_from={path} does not fit this experiment's networks or objectives ({str(e).splitlines()[0][:200]})"
+        ) from None
     finally:
         mgr.close()
     return src
@@ -85,8 +86,10 @@ def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:
     (first, l0), sizes = runs[0], lambda lr: (lr.env.obs_size, lr.env.action_size)
     for r, lr in runs[1:]:
         if sizes(lr) != sizes(l0):
-            return (f"{r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
-                    f"{first} has {l0.env.obs_size}/{l0.env.action_size}: they cannot take turns")
+            return (
+                f"{r} has observation/action sizes {lr.env.obs_size}/{lr.env.action_size}, "
+                f"{first} has {l0.env.obs_size}/{l0.env.action_size}: they cannot take turns"
+            )
     return None
 
 

@@ -13,19 +13,29 @@ from pathlib import Path
 from collections.abc import Sequence
 
 CHROMIUM_FLAGS = (
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-    "--disable-default-apps", "--disable-extensions", "--mute-audio", "--hide-scrollbars",
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-default-apps",
+    "--disable-extensions",
+    "--mute-audio",
+    "--hide-scrollbars",
     # WebGL without a GPU: SwiftShader (newer Chromium wants the 'unsafe' opt-in for it).
-    "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
 )
 
 
 def find_chromium() -> str | None:
     """Path of a Chromium/Chrome binary (``$CHROMIUM``, /usr/bin/chromium, or on PATH) or None."""
     import shutil
-    for c in (os.environ.get("CHROMIUM"), "/usr/bin/chromium", "chromium", "chromium-browser",
-              "google-chrome"):
+
+    for c in (os.environ.get("CHROMIUM"), "/usr/bin/chromium", "chromium", "chromium-browser", "google-chrome"):
         if c and (os.path.isfile(c) and os.access(c, os.X_OK) or (os.sep not in c and shutil.which(c))):
             return c if os.sep in c else shutil.which(c)
     return None
@@ -39,6 +49,7 @@ class _PipeCDP:
         import fcntl
         import shutil
         import subprocess
+
         cmd_r, self._cmd_w = os.pipe()
         self._res_r, res_w = os.pipe()
         # Chromium's ends go to fds >= 10 first, so that they cannot collide with 3 and 4.
@@ -47,16 +58,31 @@ class _PipeCDP:
             hi.append(fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, 10))
             os.close(fd)
         cmd_r, res_w = hi
-        argv = [chromium, *CHROMIUM_FLAGS, *extra_flags, f"--user-data-dir={user_data_dir}",
-                "--remote-debugging-pipe", "about:blank"]
+        argv = [
+            chromium,
+            *CHROMIUM_FLAGS,
+            *extra_flags,
+            f"--user-data-dir={user_data_dir}",
+            "--remote-debugging-pipe",
+            "about:blank",
+        ]
         from jaxmotion.viz.render import quiet_fork
+
         # bash moves our pipe ends onto fds 3 and 4, where Chromium expects them.
         with quiet_fork():
             self.proc = subprocess.Popen(
-                [shutil.which("bash") or "/bin/bash", "-c",
-                 f'exec "$@" 3<&{cmd_r} 4>&{res_w} {cmd_r}<&- {res_w}>&-', "bash", *argv],
-                pass_fds=(cmd_r, res_w), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL)
+                [
+                    shutil.which("bash") or "/bin/bash",
+                    "-c",
+                    f'exec "$@" 3<&{cmd_r} 4>&{res_w} {cmd_r}<&- {res_w}>&-',
+                    "bash",
+                    *argv,
+                ],
+                pass_fds=(cmd_r, res_w),
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
         os.close(cmd_r)
         os.close(res_w)
         self._buf = b""
@@ -66,6 +92,7 @@ class _PipeCDP:
     def _read_message(self, deadline: float) -> dict:
         import select
         import time
+
         while b"\0" not in self._buf:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -79,9 +106,9 @@ class _PipeCDP:
         msg, self._buf = self._buf.split(b"\0", 1)
         return json.loads(msg)
 
-    def send(self, method: str, params: dict | None = None, session: str | None = None,
-             timeout: float = 30.0) -> dict:
+    def send(self, method: str, params: dict | None = None, session: str | None = None, timeout: float = 30.0) -> dict:
         import time
+
         self._id += 1
         m = {"id": self._id, "method": method, "params": params or {}}
         if session:
@@ -99,6 +126,7 @@ class _PipeCDP:
     def pump(self, seconds: float) -> None:
         """Collects events for ``seconds``."""
         import time
+
         deadline = time.monotonic() + seconds
         try:
             while True:
@@ -108,6 +136,7 @@ class _PipeCDP:
 
     def close(self) -> None:
         import subprocess
+
         try:
             self.send("Browser.close", timeout=5)
         except Exception:
@@ -124,9 +153,15 @@ class _PipeCDP:
                 pass
 
 
-def check_in_browser(html_path: str | os.PathLike, png_path: str | os.PathLike | None = None,
-                     width: int = 800, height: int = 600, frame: int | None = None,
-                     chromium: str | None = None, timeout: float = 60.0) -> dict:
+def check_in_browser(
+    html_path: str | os.PathLike,
+    png_path: str | os.PathLike | None = None,
+    width: int = 800,
+    height: int = 600,
+    frame: int | None = None,
+    chromium: str | None = None,
+    timeout: float = 60.0,
+) -> dict:
     """Opens a replay page in headless Chromium, shows ``frame`` (None: the middle one), and
     reports what happened.
 
@@ -137,6 +172,7 @@ def check_in_browser(html_path: str | os.PathLike, png_path: str | os.PathLike |
     """
     import tempfile
     import time
+
     chromium = chromium or find_chromium()
     if chromium is None:
         raise FileNotFoundError("no Chromium found (apt-get install chromium)")
@@ -148,23 +184,35 @@ def check_in_browser(html_path: str | os.PathLike, png_path: str | os.PathLike |
             s = cdp.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
             for m in ("Runtime.enable", "Log.enable", "Page.enable"):
                 cdp.send(m, session=s)
-            cdp.send("Emulation.setDeviceMetricsOverride",
-                     {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}, session=s)
+            cdp.send(
+                "Emulation.setDeviceMetricsOverride",
+                {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
+                session=s,
+            )
             cdp.send("Page.navigate", {"url": url}, session=s)
             deadline = time.monotonic() + timeout
             ready = False
             while time.monotonic() < deadline:
-                r = cdp.send("Runtime.evaluate", {"expression": "!!(window.__replay && window.__replay.ready)",
-                                                  "returnByValue": True}, session=s)
+                r = cdp.send(
+                    "Runtime.evaluate",
+                    {"expression": "!!(window.__replay && window.__replay.ready)", "returnByValue": True},
+                    session=s,
+                )
                 ready = bool(r.get("result", {}).get("value"))
-                failed = cdp.send("Runtime.evaluate", {"expression": "!!(window.__replay && !window.__replay.ready)",
-                                                       "returnByValue": True}, session=s)
+                failed = cdp.send(
+                    "Runtime.evaluate",
+                    {"expression": "!!(window.__replay && !window.__replay.ready)", "returnByValue": True},
+                    session=s,
+                )
                 if ready or failed.get("result", {}).get("value"):
                     break
                 cdp.pump(0.2)
             if ready:
-                expr = ("window.__replay.setFrame(" + ("Math.floor(window.__replay.frames / 2)"
-                                                       if frame is None else str(int(frame))) + ")")
+                expr = (
+                    "window.__replay.setFrame("
+                    + ("Math.floor(window.__replay.frames / 2)" if frame is None else str(int(frame)))
+                    + ")"
+                )
                 cdp.send("Runtime.evaluate", {"expression": expr}, session=s)
             cdp.pump(0.5)
             png = None

@@ -69,12 +69,14 @@ class Player:
 
         def make_step(actor):
             def step(ts, state, move, turn):
-                state = state.replace(goal=task.steer(state.goal, last(state), move, turn),
-                                      steps=jnp.minimum(state.steps, limit))  # no time limit in play
+                state = state.replace(
+                    goal=task.steer(state.goal, last(state), move, turn), steps=jnp.minimum(state.steps, limit)
+                )  # no time limit in play
                 obs = env.policy_obs(state)
                 action = actor.act(ts, obs[None], None)[0][0]
                 state, out = env.step(state, action)
                 return state, state.data.qpos, task.markers(state.goal, last(state)), out.terminated
+
             return jax.jit(step)
 
         steps = {id(a): make_step(a) for a in actors}  # one program per distinct learner
@@ -131,8 +133,10 @@ def _view(player: Player, title: str) -> None:
     data = mujoco.MjData(model)
     dt = player.env.dt
     with mujoco.viewer.launch_passive(model, data, key_callback=player.key) as viewer:
-        print(f"{title}: keys 1-{len(player.policies)} switch policy, arrows move the target, "
-              "PageUp/PageDown turn, Enter restarts")
+        print(
+            f"{title}: keys 1-{len(player.policies)} switch policy, arrows move the target, "
+            "PageUp/PageDown turn, Enter restarts"
+        )
         while viewer.is_running():
             t0 = time.perf_counter()
             qpos, markers, _ = player.tick()
@@ -153,8 +157,11 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     problem = display_problem()
     if problem:
-        print(f"error: play opens an interactive window, but there is {problem}. "
-              "Use `python -m jaxmotion.eval RUN --video out.mp4` to render off-screen.", file=sys.stderr)
+        print(
+            f"error: play opens an interactive window, but there is {problem}. "
+            "Use `python -m jaxmotion.eval RUN --video out.mp4` to render off-screen.",
+            file=sys.stderr,
+        )
         return 2
     from jaxmotion.training.runs import load_run, spaces_mismatch
 

@@ -47,8 +47,10 @@ _BOOKKEEPING = ("iterations", "chunk", "checkpoint_every", "eval_episodes")
 
 def _mpl():
     import matplotlib
+
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -143,17 +145,29 @@ def run_panels(rows: Sequence[dict], cfg: dict) -> list[tuple[str, str, list[tup
 
     panels = [
         ("returns", "return per objective", [(k, head(k)) for k in _keys(rows, r"return/.+")]),
-        ("disc_rewards", "discriminator reward per group",
-         [(k, k.split("/", 1)[1]) for k in by_group(_keys(rows, r"reward/.+"))]),
-        ("disc_losses", "discriminator loss per group",
-         [(k, k.split("/")[1]) for k in by_group(_keys(rows, r"disc/[^/]+/loss"))]),
+        (
+            "disc_rewards",
+            "discriminator reward per group",
+            [(k, k.split("/", 1)[1]) for k in by_group(_keys(rows, r"reward/.+"))],
+        ),
+        (
+            "disc_losses",
+            "discriminator loss per group",
+            [(k, k.split("/")[1]) for k in by_group(_keys(rows, r"disc/[^/]+/loss"))],
+        ),
         ("ppo_losses", "PPO losses", [(k, k.split("/", 1)[1]) for k in _keys(rows, r"ppo/(policy|value)_loss")]),
-        ("popart", "PopArt statistics per head",
-         [(k, f"{k.split('/')[1]} {head(k)}") for k in _keys(rows, r"popart/(mean|std)/.+")]),
+        (
+            "popart",
+            "PopArt statistics per head",
+            [(k, f"{k.split('/')[1]} {head(k)}") for k in _keys(rows, r"popart/(mean|std)/.+")],
+        ),
         ("throughput", "throughput (steps_per_s)", [(k, k) for k in _keys(rows, r"steps_per_s")]),
         ("terminations", "early terminations (env/terminated)", [(k, k) for k in _keys(rows, r"env/terminated")]),
-        ("imitation_error", "DTW imitation error per group (m)",
-         [(k, k.split("/")[1]) for k in by_group(_keys(rows, r"eval/[^/]+/dtw_error_m(_mean)?"))]),
+        (
+            "imitation_error",
+            "DTW imitation error per group (m)",
+            [(k, k.split("/")[1]) for k in by_group(_keys(rows, r"eval/[^/]+/dtw_error_m(_mean)?"))],
+        ),
     ]
     return [p for p in panels if p[2]]
 
@@ -176,8 +190,7 @@ def _draw_run_panel(ax, rows, title, keys, window):
         ax.legend(fontsize=7)
 
 
-def plot_run(run_dir: str | Path, out_dir: str | Path | None = None,
-             smooth_window: int | None = None) -> list[Path]:
+def plot_run(run_dir: str | Path, out_dir: str | Path | None = None, smooth_window: int | None = None) -> list[Path]:
     """Writes the run's learning-curve PNGs (see the module docstring) and returns their paths.
 
     Args:
@@ -210,7 +223,7 @@ def plot_run(run_dir: str | Path, out_dir: str | Path | None = None,
     fig, axes = plt.subplots(nrows, cols, figsize=(5 * cols, 3.6 * nrows), dpi=90, squeeze=False)
     for ax, (stem, title, keys) in zip(axes.flat, panels):
         _draw_run_panel(ax, rows, title, keys, smooth_window)
-    for ax in list(axes.flat)[len(panels):]:
+    for ax in list(axes.flat)[len(panels) :]:
         ax.axis("off")
     fig.suptitle(f"{name} — {run_dir}", fontsize=10)
     fig.tight_layout()
@@ -237,8 +250,15 @@ def plot_meta_weights(learner, ro: dict, out: str | Path, episode: int = 0) -> P
     ch = learner.env.character
     t = np.flatnonzero(stepped[:, episode])
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 6), dpi=100, gridspec_kw={"width_ratios": [2.2, 1]})
-    im = ax.imshow(w[t, episode].T, aspect="auto", cmap="coolwarm", vmin=0.0, vmax=1.0, interpolation="nearest",
-                   extent=(0, len(t) * learner.env.dt, len(ch.joint_names) - 0.5, -0.5))
+    im = ax.imshow(
+        w[t, episode].T,
+        aspect="auto",
+        cmap="coolwarm",
+        vmin=0.0,
+        vmax=1.0,
+        interpolation="nearest",
+        extent=(0, len(t) * learner.env.dt, len(ch.joint_names) - 0.5, -0.5),
+    )
     ax.set_yticks(range(len(ch.joint_names)), ch.joint_names, fontsize=6)
     ax.set_xlabel("time (s)")
     ax.set_title(f"w per DoF, episode {episode} (1: follow the meta policy)")
@@ -331,8 +351,7 @@ DEFAULT_KEYS = ("reward/*", "eval/*/dtw_error_m", "eval/*/dtw_error_m_mean")
 
 def expand_keys(patterns: Sequence[str], rows_list: Sequence[Sequence[dict]]) -> list[str]:
     """Metric names matching the patterns (exact names or fnmatch globs) in any of the runs."""
-    names = sorted({k for rows in rows_list for r in rows for k in r
-                    if k not in ("iteration", "samples")})
+    names = sorted({k for rows in rows_list for r in rows for k in r if k not in ("iteration", "samples")})
     out: list[str] = []
     for p in patterns:
         for k in names if any(c in p for c in "*?[") else [p]:
@@ -341,8 +360,9 @@ def expand_keys(patterns: Sequence[str], rows_list: Sequence[Sequence[dict]]) ->
     return out
 
 
-def mean_std_curve(curves: Sequence[tuple[np.ndarray, np.ndarray]], num: int = 200
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def mean_std_curve(
+    curves: Sequence[tuple[np.ndarray, np.ndarray]], num: int = 200
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean and std of several (x, y) curves on the x range they all cover (linear interp.).
 
     With one curve it is returned as is (std 0)."""
@@ -386,9 +406,15 @@ def samples_to_reach(x: np.ndarray, y: np.ndarray, value: float, rising: bool = 
     return float(x[i - 1] + (value - y[i - 1]) * (x[i] - x[i - 1]) / (y[i] - y[i - 1]))
 
 
-def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[str] | None = None,
-                 keys: Sequence[str] | None = None, smooth_window: int | None = None,
-                 title: str | None = None, reach: Sequence[str] = ()) -> tuple[Path, list[dict]]:
+def plot_compare(
+    runs: Sequence[str | Path],
+    out: str | Path,
+    labels: Sequence[str] | None = None,
+    keys: Sequence[str] | None = None,
+    smooth_window: int | None = None,
+    title: str | None = None,
+    reach: Sequence[str] = (),
+) -> tuple[Path, list[dict]]:
     """Overlays runs (seeds of one config grouped into mean ± std) for each metric; see the
     module docstring. Returns the written PNG path and, per ``reach`` spec and curve, a row
     {key, value, curve, samples, ratio} (ratio: samples over the first curve's)."""
@@ -397,8 +423,10 @@ def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[s
     grouped = group_runs(run_dirs)
     if labels:
         if len(labels) != len(grouped):
-            raise ValueError(f"{len(labels)} labels for {len(grouped)} curves: "
-                             + "; ".join(f"{l} ({len(rs)} runs)" for l, rs in grouped))
+            raise ValueError(
+                f"{len(labels)} labels for {len(grouped)} curves: "
+                + "; ".join(f"{l} ({len(rs)} runs)" for l, rs in grouped)
+            )
         grouped = [(lab, rs) for lab, (_, rs) in zip(labels, grouped)]
     rows = {r: read_metrics(r) for r in run_dirs}
     goals = [parse_reach(r) for r in reach]
@@ -427,8 +455,7 @@ def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[s
                 ax.fill_between(x, m - s, m + s, color=color, alpha=0.2, lw=0)
             for k, value, rising in goals:
                 if k == key:
-                    reached.append(dict(key=k, value=value, curve=label,
-                                        samples=samples_to_reach(x, m, value, rising)))
+                    reached.append(dict(key=k, value=value, curve=label, samples=samples_to_reach(x, m, value, rising)))
         for k, value, _ in goals:
             if k == key:
                 ax.axhline(value, color="k", ls="--", lw=0.8)
@@ -436,7 +463,7 @@ def plot_compare(runs: Sequence[str | Path], out: str | Path, labels: Sequence[s
         ax.set_xlabel("samples")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    for ax in list(axes.flat)[len(keys):]:
+    for ax in list(axes.flat)[len(keys) :]:
         ax.axis("off")
     if title:
         fig.suptitle(title)
@@ -456,11 +483,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("runs", nargs="+", type=Path, help="run folders, or folders of run folders")
     p.add_argument("--out", type=Path, default=None, help="overlay PNG (default: compare.png)")
     p.add_argument("--labels", nargs="+", default=None, help="one label per curve (seed group)")
-    p.add_argument("--keys", nargs="+", default=None, help="metric names or globs (default: reward/*, eval/*/dtw_error_m*)")
+    p.add_argument(
+        "--keys", nargs="+", default=None, help="metric names or globs (default: reward/*, eval/*/dtw_error_m*)"
+    )
     p.add_argument("--smooth", type=int, default=None, help="moving-average window in iterations (default: auto)")
     p.add_argument("--title", default=None)
-    p.add_argument("--reach", nargs="+", default=(), metavar="'KEY>=VALUE'",
-                   help="samples at which each curve first reaches VALUE of KEY (>= rising, <= falling)")
+    p.add_argument(
+        "--reach",
+        nargs="+",
+        default=(),
+        metavar="'KEY>=VALUE'",
+        help="samples at which each curve first reaches VALUE of KEY (>= rising, <= falling)",
+    )
     args = p.parse_args(argv)
     try:
         runs = find_runs(args.runs)
@@ -468,17 +502,23 @@ def main(argv: list[str] | None = None) -> int:
             for path in plot_run(runs[0], smooth_window=args.smooth):
                 print(path)
             return 0
-        out, reached = plot_compare(runs, args.out or Path("compare.png"), args.labels, args.keys,
-                                    args.smooth, args.title, args.reach)
+        out, reached = plot_compare(
+            runs, args.out or Path("compare.png"), args.labels, args.keys, args.smooth, args.title, args.reach
+        )
     except (FileNotFoundError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     for label, rs in group_runs(runs) if not args.labels else []:
         print(f"{label}: {len(rs)} run(s)")
     for r in reached:
-        print(f"{r['key']} reaches {r['value']:g}: {r['curve']}: "
-              + (f"{r['samples']:,.0f} samples (x{r['ratio']:.2f} of the first curve)"
-                 if math.isfinite(r["samples"]) else "not reached"))
+        print(
+            f"{r['key']} reaches {r['value']:g}: {r['curve']}: "
+            + (
+                f"{r['samples']:,.0f} samples (x{r['ratio']:.2f} of the first curve)"
+                if math.isfinite(r["samples"])
+                else "not reached"
+            )
+        )
     print(out)
     return 0
 

@@ -103,8 +103,7 @@ def _probe(backend: str, timeout: float = 60.0) -> bool:
     env.pop("PYOPENGL_PLATFORM", None)
     try:
         with quiet_fork():
-            r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True,
-                               text=True, timeout=timeout)
+            r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=timeout)
     except (subprocess.TimeoutExpired, OSError):
         return False
     return r.returncode == 0 and "ok" in r.stdout
@@ -116,6 +115,7 @@ def _install(backend: str) -> None:
     if backend in ("egl", "osmesa"):
         os.environ.setdefault("PYOPENGL_PLATFORM", backend)
     from mujoco.rendering.classic import gl_context  # mujoco>=3.3 layout
+
     if backend == "egl":
         from mujoco.egl import GLContext
     elif backend == "osmesa":
@@ -148,17 +148,20 @@ def require_gl() -> str:
         tried = os.environ.get("MUJOCO_GL") or "egl, osmesa"
         raise RuntimeError(
             f"no headless OpenGL backend works (tried MUJOCO_GL={tried}); install EGL "
-            "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) or OSMesa (libosmesa6)")
+            "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) or OSMesa (libosmesa6)"
+        )
     return b
 
 
 # ---- the scene ---------------------------------------------------------------------------------
-def scene_mjcf(sword_shield: bool = False, ghost: bool = True, scenery: Sequence[Mapping[str, str]] = (),
-               racket: bool = False) -> str:
+def scene_mjcf(
+    sword_shield: bool = False, ghost: bool = True, scenery: Sequence[Mapping[str, str]] = (), racket: bool = False
+) -> str:
     """MJCF of the character (``racket``: with the tennis racket) over the floor, plus (``ghost``) a translucent, collision-free copy
     whose bodies, joints and geoms are named ``ghost_<name>``; its qpos follows the character's.
     ``scenery``: extra static geoms (MJCF attribute dicts, e.g. ``physics.arena.scenery``)."""
     from jaxmotion.physics.character import build_mjcf
+
     root = ET.fromstring(build_mjcf(sword_shield, racket=racket))
     wb = root.find("worldbody")
     for g in scenery:
@@ -169,8 +172,16 @@ def scene_mjcf(sword_shield: bool = False, ghost: bool = True, scenery: Sequence
         ET.SubElement(vis, "headlight", ambient=".35 .35 .35", diffuse=".5 .5 .5", specular=".1 .1 .1")
     asset = root.find("asset")
     if asset is not None:  # a dusk-blue sky instead of black
-        ET.SubElement(asset, "texture", type="skybox", builtin="gradient", rgb1=".35 .45 .55",
-                      rgb2=".05 .07 .1", width="64", height="512")
+        ET.SubElement(
+            asset,
+            "texture",
+            type="skybox",
+            builtin="gradient",
+            rgb1=".35 .45 .55",
+            rgb2=".05 .07 .1",
+            width="64",
+            height="512",
+        )
     if ghost:
         body = next(b for b in wb if b.tag == "body")
         g = ET.fromstring(ET.tostring(body))
@@ -189,8 +200,9 @@ def scene_mjcf(sword_shield: bool = False, ghost: bool = True, scenery: Sequence
     return ET.tostring(root, encoding="unicode")
 
 
-def group_colors(link_groups: Sequence[Sequence[int]],
-                 palette: Sequence[Sequence[float]] = GROUP_PALETTE) -> dict[int, tuple[float, ...]]:
+def group_colors(
+    link_groups: Sequence[Sequence[int]], palette: Sequence[Sequence[float]] = GROUP_PALETTE
+) -> dict[int, tuple[float, ...]]:
     """link index -> RGBA, group ``i`` in ``palette[i]``; a link in two groups keeps the first."""
     out: dict[int, tuple[float, ...]] = {}
     for i, links in enumerate(link_groups):
@@ -206,31 +218,42 @@ def learner_group_colors(learner) -> dict[int, tuple[float, ...]]:
 
 def _sword_shield_from_nq(nq: int) -> bool:
     from jaxmotion.physics.character import character
+
     for ss in (False, True):
         if 7 + character(ss).num_dof == nq:
             return ss
-    raise ValueError(f"qpos has {nq} entries; the characters have "
-                     f"{7 + character(False).num_dof} or {7 + character(True).num_dof}")
+    raise ValueError(
+        f"qpos has {nq} entries; the characters have {7 + character(False).num_dof} or {7 + character(True).num_dof}"
+    )
 
 
 class SceneRenderer:
     """A reusable renderer of the two-character scene (keeps one GL context)."""
 
-    def __init__(self, sword_shield: bool = False, width: int = 640, height: int = 480,
-                 group_colors: Mapping[int, Sequence[float]] | None = None,
-                 ghost_rgba: Sequence[float] = GHOST_RGBA, scenery: Sequence[Mapping[str, str]] = (),
-                 racket: bool = False):
+    def __init__(
+        self,
+        sword_shield: bool = False,
+        width: int = 640,
+        height: int = 480,
+        group_colors: Mapping[int, Sequence[float]] | None = None,
+        ghost_rgba: Sequence[float] = GHOST_RGBA,
+        scenery: Sequence[Mapping[str, str]] = (),
+        racket: bool = False,
+    ):
         import mujoco
+
         require_gl()
         self.mujoco = mujoco
-        self.model = mujoco.MjModel.from_xml_string(scene_mjcf(sword_shield, ghost=True, scenery=scenery,
-                                                               racket=racket))
+        self.model = mujoco.MjModel.from_xml_string(
+            scene_mjcf(sword_shield, ghost=True, scenery=scenery, racket=racket)
+        )
         m = self.model
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), height)
         m.vis.map.znear = 0.02
         self.data = mujoco.MjData(m)
         from jaxmotion.physics.character import character
+
         self.nb = character(sword_shield).num_bodies
         self.nq = 7 + character(sword_shield).num_dof
         assert m.nq == 2 * self.nq and m.nbody == 1 + 2 * self.nb, "unexpected scene layout"
@@ -242,7 +265,7 @@ class SceneRenderer:
                 m.geom_rgba[gi] = colors.get(b - 1, DEFAULT_LINK_RGBA)
             elif b > self.nb:
                 m.geom_rgba[gi] = ghost_rgba
-        self._ghost_geoms = (body > self.nb)
+        self._ghost_geoms = body > self.nb
         self.renderer = mujoco.Renderer(m, height=height, width=width)
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
@@ -252,18 +275,23 @@ class SceneRenderer:
         self.option = mujoco.MjvOption()
         self.width, self.height = width, height
 
-    def render(self, qpos: np.ndarray, ghost_qpos: np.ndarray | None, lookat: np.ndarray,
-               markers: Sequence[tuple[np.ndarray, Sequence[float]]] = ()) -> np.ndarray:
+    def render(
+        self,
+        qpos: np.ndarray,
+        ghost_qpos: np.ndarray | None,
+        lookat: np.ndarray,
+        markers: Sequence[tuple[np.ndarray, Sequence[float]]] = (),
+    ) -> np.ndarray:
         """One RGB frame [H, W, 3] uint8; ``ghost_qpos`` None hides the ghost. ``markers``: task
         goals as (segment [2, 3], rgba): a sphere where the segment has no length, else an arrow."""
         mj = self.mujoco
         self.data.qpos[: self.nq] = qpos
         if ghost_qpos is None:
-            self.data.qpos[self.nq:] = qpos
+            self.data.qpos[self.nq :] = qpos
             self.data.qpos[self.nq + 2] = -100.0  # far below the floor: invisible
             self.option.geomgroup[1] = 0
         else:
-            self.data.qpos[self.nq:] = ghost_qpos
+            self.data.qpos[self.nq :] = ghost_qpos
             self.option.geomgroup[1] = 1
         mj.mj_kinematics(self.model, self.data)
         mj.mj_comPos(self.model, self.data)  # the light tracks the CoM
@@ -295,7 +323,14 @@ def add_markers(scn, markers: Sequence[tuple]) -> None:
         a, b = np.asarray(seg[0], np.float64), np.asarray(seg[1], np.float64)
         rgba = np.asarray(rgba, np.float32)
         if np.linalg.norm(b - a) < 1e-6:
-            mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_SPHERE, np.array([radius[0] if radius else MARKER_RADIUS, 0, 0]), a, np.eye(3).ravel(), rgba)
+            mj.mjv_initGeom(
+                g,
+                mj.mjtGeom.mjGEOM_SPHERE,
+                np.array([radius[0] if radius else MARKER_RADIUS, 0, 0]),
+                a,
+                np.eye(3).ravel(),
+                rgba,
+            )
         else:
             mj.mjv_initGeom(g, mj.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(), rgba)
             mj.mjv_connector(g, mj.mjtGeom.mjGEOM_ARROW, 0.02, a, b)
@@ -318,7 +353,7 @@ def marker_style(name: str) -> tuple[tuple[float, ...], float]:
     when unknown. The video and the HTML replay both draw with it, so their colours agree."""
     base = name.rstrip("0123456789")
     if base == ACTING_PREFIX and base != name:
-        return policy_rgba(int(name[len(base):])), ACTING_RADIUS
+        return policy_rgba(int(name[len(base) :])), ACTING_RADIUS
     return MARKER_RGBA.get(base, (0.9, 0.8, 0.1, 0.9)), MARKER_RADII.get(base, MARKER_RADIUS)
 
 
@@ -354,8 +389,9 @@ def acting_markers(head_pos: np.ndarray, acting: np.ndarray, num_policies: int) 
     return out
 
 
-def rollout_markers(learner, ro: Mapping[str, np.ndarray], episode: int, n: int,
-                    num_policies: int = 1) -> dict[str, np.ndarray]:
+def rollout_markers(
+    learner, ro: Mapping[str, np.ndarray], episode: int, n: int, num_policies: int = 1
+) -> dict[str, np.ndarray]:
     """The first ``n`` frames' markers of one ``eval.rollout`` episode, name -> [n, 2, 3]: the
     task's goal (``ro["markers"]``) and, when ``num_policies`` > 1, the acting policy's sphere."""
     out = {k: np.asarray(v)[:n, episode] for k, v in (ro.get("markers") or {}).items()}
@@ -377,13 +413,22 @@ def follow_lookat(root_pos: np.ndarray, smoothing: float = 0.9, height: float = 
     return out
 
 
-def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
-                group_colors: Mapping[int, Sequence[float]] | None = None,
-                width: int = 640, height: int = 480, *, camera_distance: float = 3.5,
-                camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
-                ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True,
-                markers: Mapping[str, np.ndarray] | None = None,
-                scenery: Sequence[Mapping[str, str]] = (), racket: bool = False) -> Iterator[np.ndarray]:
+def iter_frames(
+    qpos_seq: np.ndarray,
+    ref_qpos_seq: np.ndarray | None = None,
+    group_colors: Mapping[int, Sequence[float]] | None = None,
+    width: int = 640,
+    height: int = 480,
+    *,
+    camera_distance: float = 3.5,
+    camera_azimuth: float = 135.0,
+    camera_elevation: float = -15.0,
+    ghost_rgba: Sequence[float] = GHOST_RGBA,
+    progress: bool = True,
+    markers: Mapping[str, np.ndarray] | None = None,
+    scenery: Sequence[Mapping[str, str]] = (),
+    racket: bool = False,
+) -> Iterator[np.ndarray]:
     """``render_frames`` one frame at a time (uint8 [H, W, 3] each), for long videos.
     ``markers``: name -> [T, 2, 3] task-goal segments to draw (``Task.markers``); ``scenery``:
     static geoms to add (ropes, piste lines); with it the camera follows the midpoint of the
@@ -399,20 +444,27 @@ def iter_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
     track = qpos_seq[:, :3] if not scenery or ref_qpos_seq is None else 0.5 * (qpos_seq[:, :3] + ref_qpos_seq[:, :3])
     lookat = follow_lookat(track)
     from tqdm.auto import tqdm
+
     with SceneRenderer(ss, width, height, group_colors, ghost_rgba, scenery, racket) as sr:
-        sr.camera.distance, sr.camera.azimuth, sr.camera.elevation = (
-            camera_distance, camera_azimuth, camera_elevation)
-        for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress,
-                      leave=False):
+        sr.camera.distance, sr.camera.azimuth, sr.camera.elevation = (camera_distance, camera_azimuth, camera_elevation)
+        for t in tqdm(range(len(qpos_seq)), desc="render", unit="frame", disable=not progress, leave=False):
             mk = marker_list({name: seg[t] for name, seg in (markers or {}).items()})
             yield sr.render(qpos_seq[t], None if ref_qpos_seq is None else ref_qpos_seq[t], lookat[t], mk)
 
 
-def render_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
-                  group_colors: Mapping[int, Sequence[float]] | None = None,
-                  width: int = 640, height: int = 480, *, camera_distance: float = 3.5,
-                  camera_azimuth: float = 135.0, camera_elevation: float = -15.0,
-                  ghost_rgba: Sequence[float] = GHOST_RGBA, progress: bool = True) -> np.ndarray:
+def render_frames(
+    qpos_seq: np.ndarray,
+    ref_qpos_seq: np.ndarray | None = None,
+    group_colors: Mapping[int, Sequence[float]] | None = None,
+    width: int = 640,
+    height: int = 480,
+    *,
+    camera_distance: float = 3.5,
+    camera_azimuth: float = 135.0,
+    camera_elevation: float = -15.0,
+    ghost_rgba: Sequence[float] = GHOST_RGBA,
+    progress: bool = True,
+) -> np.ndarray:
     """Renders a qpos sequence, optionally with the reference as a ghost.
 
     Args:
@@ -431,30 +483,50 @@ def render_frames(qpos_seq: np.ndarray, ref_qpos_seq: np.ndarray | None = None,
         uint8 [T, H, W, 3].
     """
     frames = np.empty((len(qpos_seq), height, width, 3), np.uint8)
-    for t, f in enumerate(iter_frames(qpos_seq, ref_qpos_seq, group_colors, width, height,
-                                      camera_distance=camera_distance, camera_azimuth=camera_azimuth,
-                                      camera_elevation=camera_elevation, ghost_rgba=ghost_rgba,
-                                      progress=progress)):
+    for t, f in enumerate(
+        iter_frames(
+            qpos_seq,
+            ref_qpos_seq,
+            group_colors,
+            width,
+            height,
+            camera_distance=camera_distance,
+            camera_azimuth=camera_azimuth,
+            camera_elevation=camera_elevation,
+            ghost_rgba=ghost_rgba,
+            progress=progress,
+        )
+    ):
         frames[t] = f
     return frames
 
 
-def write_video(frames: np.ndarray | Iterable[np.ndarray], path: str | os.PathLike,
-                fps: float = 30.0) -> Path:
+def write_video(frames: np.ndarray | Iterable[np.ndarray], path: str | os.PathLike, fps: float = 30.0) -> Path:
     """Writes uint8 frames ([T, H, W, 3], or an iterable of [H, W, 3], consumed as it goes) as
     MP4 (H.264 via imageio-ffmpeg's bundled ffmpeg) or, for a ``.gif`` path, as GIF.
 
     Odd frame sizes are padded to even for H.264. Returns the path.
     """
     import imageio.v2 as imageio
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".gif":
         imageio.mimsave(path, [np.asarray(f, np.uint8) for f in frames], duration=1000.0 / fps, loop=0)
         return path
     n = 0
-    with quiet_fork(), imageio.get_writer(path, fps=fps, codec="libx264", quality=7, pixelformat="yuv420p",
-                                          macro_block_size=1, ffmpeg_log_level="error") as wr:
+    with (
+        quiet_fork(),
+        imageio.get_writer(
+            path,
+            fps=fps,
+            codec="libx264",
+            quality=7,
+            pixelformat="yuv420p",
+            macro_block_size=1,
+            ffmpeg_log_level="error",
+        ) as wr,
+    ):
         for f in frames:
             f = np.asarray(f, np.uint8)
             h, w = f.shape[:2]
@@ -475,6 +547,7 @@ def reference_qpos(learner, group: int, num_frames: int) -> np.ndarray:
     """[num_frames, nq] qpos of the group's first clip at the control rate, repeated (as
     ``eval.reference_sequence``), in the clip's own world frame."""
     from jaxmotion.motion.motionlib import qpos_qvel
+
     return np.asarray(qpos_qvel(reference_state(learner, group, num_frames))[0], np.float64)
 
 
@@ -486,9 +559,17 @@ def aligned_reference_qpos(ref_qpos: np.ndarray, sim_qpos0: np.ndarray) -> np.nd
     return out
 
 
-def render_rollout(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLike, episode: int = 0,
-                   group: int = 0, width: int = 640, height: int = 480, fps: float | None = None,
-                   policies: Sequence[str] = ()) -> Path:
+def render_rollout(
+    learner,
+    ro: Mapping[str, np.ndarray],
+    path: str | os.PathLike,
+    episode: int = 0,
+    group: int = 0,
+    width: int = 640,
+    height: int = 480,
+    fps: float | None = None,
+    policies: Sequence[str] = (),
+) -> Path:
     """Renders one episode of ``eval.rollout``'s output (alive frames only) with the ghost of
     ``group``'s reference clip (see the module docstring) and writes it to ``path``. ``policies``:
     names of the runs that took turns (``ro["acting"]`` indexes them); with two or more, a sphere
@@ -497,6 +578,7 @@ def render_rollout(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLik
     qpos = np.asarray(ro["qpos"])[:n, episode].astype(np.float64)
     ref = aligned_reference_qpos(reference_qpos(learner, group, n), qpos[0])
     markers = rollout_markers(learner, ro, episode, n, len(policies))
-    frames = iter_frames(qpos, ref, learner_group_colors(learner), width, height, markers=markers,
-                         racket=learner.env.cfg.physics.racket)
+    frames = iter_frames(
+        qpos, ref, learner_group_colors(learner), width, height, markers=markers, racket=learner.env.cfg.physics.racket
+    )
     return write_video(frames, path, fps or 1.0 / learner.env.dt)

@@ -36,9 +36,12 @@ APP_JS = ASSETS / "replay.js"
 _GEOM_TYPES = {2: "sphere", 3: "capsule", 5: "cylinder", 6: "box"}  # mjtGeom values
 
 
-def character_geoms(sword_shield: bool = False,
-                    group_colors: Mapping[int, Sequence[float]] | None = None,
-                    default_rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0), racket: bool = False) -> list[dict]:
+def character_geoms(
+    sword_shield: bool = False,
+    group_colors: Mapping[int, Sequence[float]] | None = None,
+    default_rgba: Sequence[float] = (0.7, 0.7, 0.7, 1.0),
+    racket: bool = False,
+) -> list[dict]:
     """The character's geoms (``racket``: with the tennis racket) as plain dicts for ``write_html``.
 
     Each dict: ``body`` (link index, 0 = root), ``type`` (sphere | capsule | cylinder | box),
@@ -49,6 +52,7 @@ def character_geoms(sword_shield: bool = False,
     """
     import mujoco
     from jaxmotion.physics.character import build_mjcf
+
     m = mujoco.MjModel.from_xml_string(build_mjcf(sword_shield, floor=False, racket=racket))
     colors = dict(group_colors or {})
     out = []
@@ -57,10 +61,16 @@ def character_geoms(sword_shield: bool = False,
         typ = _GEOM_TYPES.get(int(m.geom_type[g]))
         if b == 0 or typ is None:
             continue
-        out.append({"body": b - 1, "type": typ, "size": [round(float(x), 6) for x in m.geom_size[g]],
-                    "pos": [round(float(x), 6) for x in m.geom_pos[g]],
-                    "quat": [round(float(x), 6) for x in m.geom_quat[g]],
-                    "rgba": [float(x) for x in colors.get(b - 1, default_rgba)]})
+        out.append(
+            {
+                "body": b - 1,
+                "type": typ,
+                "size": [round(float(x), 6) for x in m.geom_size[g]],
+                "pos": [round(float(x), 6) for x in m.geom_pos[g]],
+                "quat": [round(float(x), 6) for x in m.geom_quat[g]],
+                "rgba": [float(x) for x in colors.get(b - 1, default_rgba)],
+            }
+        )
     return out
 
 
@@ -79,13 +89,23 @@ def _check(name: str, a, shape_tail: tuple[int, ...], T: int | None) -> np.ndarr
     return a
 
 
-def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequence[int],
-               sim_pos: np.ndarray, sim_quat: np.ndarray, ref_pos: np.ndarray | None,
-               ref_quat: np.ndarray | None, fps: float, geoms: Sequence[Mapping],
-               *, title: str = "jaxmotion replay",
-               legend: Mapping[str, Sequence[float]] | None = None, markers: Sequence[Mapping] = (),
-               acting: np.ndarray | None = None,
-               policies: Sequence[tuple[str, Sequence[float]]] = ()) -> Path:
+def write_html(
+    path: str | os.PathLike,
+    body_names: Sequence[str],
+    parents: Sequence[int],
+    sim_pos: np.ndarray,
+    sim_quat: np.ndarray,
+    ref_pos: np.ndarray | None,
+    ref_quat: np.ndarray | None,
+    fps: float,
+    geoms: Sequence[Mapping],
+    *,
+    title: str = "jaxmotion replay",
+    legend: Mapping[str, Sequence[float]] | None = None,
+    markers: Sequence[Mapping] = (),
+    acting: np.ndarray | None = None,
+    policies: Sequence[tuple[str, Sequence[float]]] = (),
+) -> Path:
     """Writes the replay page.
 
     Args:
@@ -122,18 +142,34 @@ def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequ
         seg = np.asarray(m["seg"], np.float32)
         if seg.shape != (T, 2, 3):
             raise ValueError(f"marker {m['name']!r} must be [{T}, 2, 3], got {seg.shape}")
-        marks.append({"name": str(m["name"]), "rgba": [float(x) for x in m["rgba"]],
-                      "radius": float(m["radius"]), "seg": _b64(seg)})
+        marks.append(
+            {
+                "name": str(m["name"]),
+                "rgba": [float(x) for x in m["rgba"]],
+                "radius": float(m["radius"]),
+                "seg": _b64(seg),
+            }
+        )
     if acting is not None:
         acting = np.asarray(acting).astype(int).tolist()
         if len(acting) != T or not all(0 <= a < len(policies) for a in acting):
             raise ValueError(f"acting must be [{T}] indices into {len(policies)} policies")
     data = {
-        "title": title, "fps": float(fps), "T": int(T), "nb": nb,
-        "bodyNames": list(body_names), "parents": [int(p) for p in parents],
-        "geoms": [dict(g) for g in geoms], "legend": {k: list(map(float, v)) for k, v in (legend or {}).items()},
-        "simPos": _b64(sp), "simQuat": _b64(sq), "refPos": None, "refQuat": None, "markers": marks,
-        "acting": acting, "policies": [{"name": str(n), "rgba": [float(x) for x in c]} for n, c in policies],
+        "title": title,
+        "fps": float(fps),
+        "T": int(T),
+        "nb": nb,
+        "bodyNames": list(body_names),
+        "parents": [int(p) for p in parents],
+        "geoms": [dict(g) for g in geoms],
+        "legend": {k: list(map(float, v)) for k, v in (legend or {}).items()},
+        "simPos": _b64(sp),
+        "simQuat": _b64(sq),
+        "refPos": None,
+        "refQuat": None,
+        "markers": marks,
+        "acting": acting,
+        "policies": [{"name": str(n), "rgba": [float(x) for x in c]} for n, c in policies],
     }
     if ref_pos is not None:
         data["refPos"] = _b64(_check("ref_pos", ref_pos, (nb, 3), T))
@@ -142,19 +178,28 @@ def write_html(path: str | os.PathLike, body_names: Sequence[str], parents: Sequ
     if "</script" in three.lower():
         raise RuntimeError(f"{THREE_JS} contains '</script' and cannot be inlined")
     payload = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
-    page = (TEMPLATE.read_text(encoding="utf-8").replace("@@TITLE@@", html.escape(title))
-            .replace("@@DATA@@", payload)
-            .replace("@@APP@@", APP_JS.read_text(encoding="utf-8"))
-            .replace("@@THREE@@", three))
+    page = (
+        TEMPLATE.read_text(encoding="utf-8")
+        .replace("@@TITLE@@", html.escape(title))
+        .replace("@@DATA@@", payload)
+        .replace("@@APP@@", APP_JS.read_text(encoding="utf-8"))
+        .replace("@@THREE@@", three)
+    )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(page, encoding="utf-8")
     return path
 
 
-def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.PathLike,
-                       episode: int = 0, group: int = 0, title: str | None = None,
-                       policies: Sequence[str] = ()) -> Path:
+def write_rollout_html(
+    learner,
+    ro: Mapping[str, np.ndarray],
+    path: str | os.PathLike,
+    episode: int = 0,
+    group: int = 0,
+    title: str | None = None,
+    policies: Sequence[str] = (),
+) -> Path:
     """The replay page of one episode of ``eval.rollout``'s output (alive frames only), with
     ``group``'s reference clip as the ghost (``eval.reference_sequence``, moved rigidly in xy +
     yaw onto the simulation's first root frame as ``eval.world_aligned`` does) and the task's
@@ -162,8 +207,16 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     two or more, the page names the acting one per frame and draws the video's sphere over the
     head in its colour."""
     from jaxmotion.envs.reference import reference_sequence
-    from jaxmotion.viz.render import (GROUP_PALETTE, align_pose, align_to_start, learner_group_colors, marker_style,
-                                  policy_rgba, rollout_markers)
+    from jaxmotion.viz.render import (
+        GROUP_PALETTE,
+        align_pose,
+        align_to_start,
+        learner_group_colors,
+        marker_style,
+        policy_rgba,
+        rollout_markers,
+    )
+
     ch = learner.env.character
     n = int(np.asarray(ro["alive"])[:, episode].sum())
     sp = np.asarray(ro["pos"])[:n, episode]
@@ -175,11 +228,24 @@ def write_rollout_html(learner, ro: Mapping[str, np.ndarray], path: str | os.Pat
     colors = learner_group_colors(learner)
     legend = {name: GROUP_PALETTE[i % len(GROUP_PALETTE)] for i, name in enumerate(names)}
     ref_name = names[group] if names else "reference"
-    markers = [{"name": k, "seg": v, "rgba": marker_style(k)[0], "radius": marker_style(k)[1]}
-               for k, v in rollout_markers(learner, ro, episode, n, len(policies)).items()]
+    markers = [
+        {"name": k, "seg": v, "rgba": marker_style(k)[0], "radius": marker_style(k)[1]}
+        for k, v in rollout_markers(learner, ro, episode, n, len(policies)).items()
+    ]
     switched = len(policies) > 1 and ro.get("acting") is not None
-    return write_html(path, ch.body_names, ch.parents, sp, sq, rp, rq, 1.0 / learner.env.dt,
-                      character_geoms(ch.sword_shield, colors, racket=learner.env.cfg.physics.racket),
-                      title=title or f"jaxmotion replay (ghost: {ref_name} reference)", legend=legend,
-                      markers=markers, acting=np.asarray(ro["acting"])[:n, episode] if switched else None,
-                      policies=[(name, policy_rgba(i)) for i, name in enumerate(policies)] if switched else ())
+    return write_html(
+        path,
+        ch.body_names,
+        ch.parents,
+        sp,
+        sq,
+        rp,
+        rq,
+        1.0 / learner.env.dt,
+        character_geoms(ch.sword_shield, colors, racket=learner.env.cfg.physics.racket),
+        title=title or f"jaxmotion replay (ghost: {ref_name} reference)",
+        legend=legend,
+        markers=markers,
+        acting=np.asarray(ro["acting"])[:n, episode] if switched else None,
+        policies=[(name, policy_rgba(i)) for i, name in enumerate(policies)] if switched else (),
+    )
