@@ -1,4 +1,4 @@
-# jaxmotion: make setup | test | train EXP=<name> ARGS="k=v ..." | eval RUN=<run-folder> | bench
+# jaxmotion: make setup | test | train EXP=<name> ARGS="k=v ..." | eval RUN=<run-folder> | bench | demo | lint
 PY ?= .venv/bin/python
 EXP ?= smoke
 ARGS ?=
@@ -9,7 +9,7 @@ STAMP := .venv/.installed
 JAXMOTION_DATA ?= $(if $(wildcard data),data,$(if $(wildcard ../shared/motions),$(abspath ../shared/motions),data))
 export JAXMOTION_DATA
 
-.PHONY: setup test train eval bench clean
+.PHONY: setup test train eval bench demo lint clean
 
 setup: $(STAMP)
 
@@ -31,6 +31,15 @@ eval: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m jaxmotion.bench $(BENCH_ARGS)
+
+# A first look: the shipped Table 1 policy, evaluated briefly, as a video and a 3D replay page.
+DEMO ?= pretrained/chest_open+squat_cpu
+demo: $(STAMP)
+	$(PY) -m jaxmotion.eval $(DEMO) --episodes 1 --no-plots --json demo/metrics.json --video demo/demo.mp4 --html demo/demo.html
+
+lint: $(STAMP)
+	$(PY) -m ruff check jaxmotion tests experiments
+	$(PY) -m ruff format --check jaxmotion tests experiments
 
 clean:
 	rm -rf build dist *.egg-info .pytest_cache

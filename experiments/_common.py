@@ -164,8 +164,8 @@ _ASE_CLIPS = (
     "WalkForward01",
     "WalkRight01",
 )
-# Every clip of the shared data not in the dev split (sword-and-shield ones without their props); the duplicates of notes §7
-# (iccgan/punch = gym/punch, amp_humanoid_backflip = deepmimic backflip) counted once.
+# Every clip of the shared data not in the dev split (sword-and-shield ones without their props); the
+# duplicates of notes §7 (iccgan/punch = gym/punch, amp_humanoid_backflip = deepmimic backflip) counted once.
 TRACK_TRAIN = tuple(
     p
     for p in (

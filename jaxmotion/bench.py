@@ -27,8 +27,9 @@ process's peak resident memory, which only grows over a run (batches go smallest
 Compilation is timed separately (``compile_s``: lowering plus XLA compile) and followed by one
 untimed warm-up call. All parts at one batch size are then timed in ``--rounds`` alternating
 rounds that together last at least ``--seconds`` per part (the physics calls each from the same
-initial states), so that a slow spell of the host slows physics and training alike. Batch 256 stays in the default list because
-jax 0.10.2 hung there (DESIGN.md); ``--timeout`` turns a hang into an exit with a traceback.
+initial states), so that a slow spell of the host slows physics and training alike. Batch 256
+stays in the default list because jax 0.10.2 hung there (DESIGN.md); ``--timeout`` turns a hang
+into an exit with a traceback.
 """
 
 from __future__ import annotations
@@ -457,7 +458,8 @@ def report(result: dict[str, Any]) -> str:
         if result[part]:
             out += [
                 "",
-                f"{part} (control steps/s; cost/physics = time per control step over physics alone; exp {result['settings']['exp']})",
+                f"{part} (control steps/s; cost/physics = time per control step over physics alone;"
+                f" exp {result['settings']['exp']})",
                 format_table(
                     result[part],
                     [

@@ -249,10 +249,7 @@ def test_disc_loss_linear_hand_computed(gp_mode):
     W, b = np.asarray(params["W"]), np.asarray(params["b"])
     d_pol, d_ref = pol @ W.T + b, ref @ W.T + b
     hinge = np.mean(np.maximum(0, 1 + d_pol)) + np.mean(np.maximum(0, 1 - d_ref))
-    if gp_mode == "per_head":
-        gp = np.mean((np.linalg.norm(W, axis=1) - 1) ** 2)
-    else:
-        gp = (np.linalg.norm(W.sum(0)) - 1) ** 2
+    gp = np.mean((np.linalg.norm(W, axis=1) - 1) ** 2) if gp_mode == "per_head" else (np.linalg.norm(W.sum(0)) - 1) ** 2
     loss, metrics = disc.disc_loss(apply_fn, params, pol, ref, jax.random.PRNGKey(0), gp_weight=10.0, gp_mode=gp_mode)
     np.testing.assert_allclose(metrics["hinge_loss"], hinge, rtol=1e-5)
     np.testing.assert_allclose(metrics["gradient_penalty"], gp, rtol=1e-5)

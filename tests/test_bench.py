@@ -19,7 +19,8 @@ def _positive(x) -> bool:
 
 @pytest.mark.physics
 def test_physics_bench_writes_complete_json(tmp_path, request):
-    """``--quick`` (physics, rollout and the full training iteration on the C backend) runs compiled (JAX_DISABLE_JIT=0) and writes every field.
+    """``--quick`` (physics, rollout and the full training iteration on the C backend) runs compiled
+    (JAX_DISABLE_JIT=0) and writes every field.
 
     The subprocess shares a JAX compilation cache under pytest's cache folder: the first run
     compiles MJX twice (about a minute on a 2-core CPU), later runs load the executables.

@@ -377,7 +377,7 @@ def test_swapping_sides_swaps_the_results_and_bouts_have_no_nan():
         flip[env.body_obs_size : env.body_obs_size + 4] = -1.0
         np.testing.assert_allclose(jax.vmap(env.policy_obs)(sw), obs[:, ::-1] * flip, atol=1e-5)
         rng = np.random.default_rng(0)
-        for t in range(12):
+        for _t in range(12):
             a = jnp.asarray(rng.normal(0, 0.3, (8, 2, env.action_size)), jnp.float32)
             s, out = step(s, a)
             sw, out_sw = step(sw, a[:, ::-1])

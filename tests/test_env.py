@@ -202,7 +202,7 @@ def test_reference_and_simulation_discriminator_views_agree(env, fns):
     frames = []
     with jit_enabled():
         for k in range(5):
-            qpos, qvel = qpos_qvel(jax.tree.map(lambda x: x[k], ms))
+            qpos, qvel = qpos_qvel(jax.tree.map(lambda x, k=k: x[k], ms))
             frames.append(kin(qpos, qvel))
     hist = jax.tree.map(lambda *x: jnp.stack(x), *frames)
     sim_views = env.disc_obs(hist)

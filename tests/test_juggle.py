@@ -202,7 +202,7 @@ def test_physical_balls_fly_in_the_scene_and_are_never_lost():
         np.testing.assert_allclose(state.data.qpos[-21:].reshape(3, 7)[:, :3], state.goal.balls.pos, atol=1e-6)
         hold = env.action_for_target(jnp.zeros(env.action_size))
         throws = 0
-        for t in range(45):
+        for _t in range(45):
             before = state.goal.balls
             state, out = step(state, hold)
             b = state.goal.balls

@@ -1,4 +1,4 @@
-"""Incremental learning (``meta.py``): a new policy on a frozen meta policy's sampled action."""
+"""Incremental learning (``training/meta.py``): a new policy on a frozen meta policy's sampled action."""
 
 from __future__ import annotations
 

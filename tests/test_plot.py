@@ -169,7 +169,7 @@ def test_reach_compares_sample_efficiency(tmp_path, capsys):
     _make_run(tmp_path / "cmp" / "fast", multi_objective=False, offset=0.3)
     runs = P.find_runs([tmp_path / "cmp"])
     for r in runs:  # noiseless, so the crossing is exact
-        rows = [json.loads(l) for l in (r / "metrics.jsonl").read_text().splitlines()]
+        rows = [json.loads(line) for line in (r / "metrics.jsonl").read_text().splitlines()]
         off = 0.3 if r.name == "fast" else 0.0
         for row in rows:
             row["reward/upper"] = off + 0.05 * row["iteration"]

@@ -211,7 +211,7 @@ def test_pool_bouts_have_player_1_acted_by_their_pool_member():
     obs = jnp.tile(jnp.linspace(-0.5, 0.5, 16)[:, None, None], (1, 2, 1))
     a, _, _ = learner.act(ts, obs, None)
     mixed = pool.act(learner._act, ps, None, obs, a, None)
-    member = [jax.tree.map(lambda x: x[k], (ps.policy_params, ps.obs_norm)) for k in range(2)]
+    member = [jax.tree.map(lambda x, k=k: x[k], (ps.policy_params, ps.obs_norm)) for k in range(2)]
     for b, k in enumerate([0, 1, 1, 0]):
         sub = ts.replace(policy_params=member[k][0], obs_norm=member[k][1])
         want, _, _ = learner._act(sub, obs[b : b + 1, 1], None)
@@ -246,7 +246,7 @@ def test_pool_snapshots_fill_a_ring_and_members_are_drawn_among_them():
     pool = learner.pool
     ts = learner.init(jax.random.PRNGKey(0))
     ps = ts.pool
-    versions = [jax.tree.map(lambda x: jnp.full_like(x, v), ts.policy_params) for v in range(1, 6)]
+    versions = [jax.tree.map(lambda x, v=v: jnp.full_like(x, v), ts.policy_params) for v in range(1, 6)]
     first = lambda s, k: float(jax.tree.leaves(s.policy_params)[0][k].ravel()[0])
     untrained = first(ps, 0)
     for it, params in enumerate(versions, start=1):  # every 2 iterations into slot 1, 0, 1, ...

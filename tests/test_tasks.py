@@ -211,7 +211,7 @@ def test_every_task_quick_check(name):
     goal = jax.jit(jax.vmap(task.init))(jax.random.split(jax.random.PRNGKey(0), 3), frames)
     observe, step = jax.jit(jax.vmap(task.observe)), jax.jit(jax.vmap(task.step))
     rng = jax.random.PRNGKey(1)
-    for t in range(12):
+    for _t in range(12):
         rng, k, k_move = jax.random.split(rng, 3)
         moved = frames.replace(
             pos=frames.pos + jnp.concatenate([0.04 * jax.random.normal(k_move, (3, 1, 2)), jnp.zeros((3, 1, 1))], -1)

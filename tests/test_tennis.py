@@ -114,7 +114,7 @@ def test_ball_passes_through_the_body_and_feeds_on_schedule():
         np.testing.assert_allclose(state.goal.ball_vel[0], 6.0, rtol=1e-4)
         assert float(state.goal.force) == 0.0 and not bool(state.goal.hit)
         fed = []
-        for t in range(2, 12):
+        for _t in range(2, 12):
             state, out = step(state, _hold(env))
             fed.append(bool(out.info["fed"]))
             if fed[-1]:

@@ -412,7 +412,10 @@ def test_uniform_init_sampling_picks_every_clip_alike():
         )
         env = HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
         with jit_enabled():
-            clips = jax.jit(lambda k: jax.vmap(lambda kk: env.reset(kk)[0].goal.clip)(jax.random.split(k, 4000)))
+            # env bound as a default of the jitted function (called with k only), not of the vmapped one.
+            clips = jax.jit(
+                lambda k, env=env: jax.vmap(lambda kk: env.reset(kk)[0].goal.clip)(jax.random.split(k, 4000))
+            )
             freq = float(np.mean(np.asarray(clips(jax.random.PRNGKey(0)))))
         assert abs(freq - want) < 0.03, (sampling, freq)
     with pytest.raises(ValueError, match="init_sampling"):

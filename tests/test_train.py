@@ -74,7 +74,7 @@ def _untimed(row: dict) -> dict:
 
 @pytest.fixture(scope="module")
 def motion_data(data_dir):
-    """Points ``jaxmotion.data`` at the shared motions for this module."""
+    """Points ``$JAXMOTION_DATA`` at the shared motions for this module."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("JAXMOTION_DATA", str(data_dir))
         yield data_dir
@@ -91,7 +91,7 @@ def shared_chunk():
 
     def memo(learner, mesh, chunk, example):
         key = (
-            dataclasses.replace(learner.cfg, resume="", iterations=0, checkpoint_every=0),
+            dataclasses.replace(learner.cfg, resume="", init_from="", iterations=0, checkpoint_every=0),
             chunk,
             tuple(d.id for d in mesh.devices.flat),
         )
@@ -332,7 +332,7 @@ def test_two_devices_match_one_device(runs, tmp_path, request):
     row1, row2 = _untimed(runs["b1_rows"][0]), _untimed(info["metrics"][0])
     assert row1.keys() == row2.keys()
     mdiff = {k: abs(row1[k] - row2[k]) / max(1.0, abs(row1[k])) for k in row1}
-    print("  metrics: %.3g at %s" % max((v, k) for k, v in mdiff.items()))
+    print("  metrics: {:.3g} at {}".format(*max((v, k) for k, v in mdiff.items())))
     for k in row1:
         assert row2[k] == pytest.approx(row1[k], rel=1e-2, abs=1e-3), k
 
@@ -463,3 +463,60 @@ def test_cli_without_clips_prints_one_clear_line(cli, tmp_path, monkeypatch, cap
     assert "nowhere/compositemotion/gym/" in err and "no such file" in err and "JAXMOTION_DATA" in err
     assert "Traceback" not in err
     assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.slow
+def test_init_from_continues_a_run_in_a_new_folder(runs, tmp_path):
+    """``init_from=<run>``: a new run starts from run A's parameters, optimiser, statistics and
+    iteration count (freshly reset environments), so its first chunk continues A's training;
+    a run whose networks do not fit is one clear error and leaves no folder behind."""
+    from jaxmotion.training.runs import InitFromError
+
+    cfg, a = runs["cfg"], runs["a"]
+    more = dataclasses.replace(cfg, init_from=str(a.run_dir), iterations=cfg.iterations + cfg.chunk)
+    with jit_enabled():
+        c = train_mod.train(EXPERIMENT, more, run_dir=tmp_path / "C", progress=False, tensorboard=False)
+    assert int(c.state.iteration) == cfg.iterations + cfg.chunk
+    assert [r["iteration"] for r in c.metrics] == list(range(cfg.iterations + 1, cfg.iterations + cfg.chunk + 1))
+    assert c.metrics[0]["samples"] == (cfg.iterations + 1) * cfg.samples_per_iteration
+    final = dict(_leaves(a.state))
+    # The new run trained on from A's state: its parameters moved away from A's final ones, but
+    # its first log row's statistics continue A's (PopArt moved from A's, not from scratch).
+    assert any(not np.array_equal(final[k], x) for k, x in _leaves(c.state) if "policy_params" in k)
+    assert ckpt.read_config(tmp_path / "C", TrainConfig)[1].init_from == str(a.run_dir)
+
+    wide = dataclasses.replace(more, net=dataclasses.replace(cfg.net, policy_hidden=(8,)))
+    with jit_enabled(), pytest.raises(InitFromError, match="does not fit"):
+        train_mod.train(EXPERIMENT, wide, run_dir=tmp_path / "D", progress=False, tensorboard=False)
+    assert not (tmp_path / "D").exists()
+
+
+def test_init_from_a_folder_that_is_no_run_is_one_line(tmp_path, capsys, motion_data):
+    rc = train_mod.main([EXPERIMENT, f"init_from={tmp_path / 'nothing'}", "iterations=1", "chunk=1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "init_from=" in err and "not a run folder" in err and "Traceback" not in err
+
+
+def test_restore_can_leave_leaves_out_but_finds_every_leaf_it_asks_for(tmp_path):
+    """``checkpoint.restore(skip=...)`` (what ``init_from`` uses): skipped leaves keep the
+    template's values whatever their shape on disk; a leaf of another shape, or one the
+    checkpoint lacks, is an error rather than a silently fresh value."""
+    import jax.numpy as jnp
+
+    mgr = ckpt.manager(tmp_path)
+    ckpt.save(mgr, 3, {"a": jnp.arange(3.0), "env": jnp.ones(5)})
+    mgr.close()
+    for like, problem in (
+        ({"a": jnp.zeros(4), "env": jnp.zeros(7)}, "shape"),
+        ({"a": jnp.zeros(3), "b": jnp.zeros(2), "env": jnp.zeros(7)}, "has no"),
+    ):
+        mgr = ckpt.manager(tmp_path)
+        with pytest.raises(ValueError, match=problem):
+            ckpt.restore(mgr, like, skip=("['env']",))
+        mgr.close()
+    mgr = ckpt.manager(tmp_path)
+    got, step = ckpt.restore(mgr, {"a": jnp.zeros(3), "env": jnp.zeros(7)}, skip=("['env']",))
+    mgr.close()
+    assert step == 3
+    np.testing.assert_array_equal(got["a"], [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(got["env"], np.zeros(7))

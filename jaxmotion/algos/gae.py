@@ -114,8 +114,8 @@ def apply_termination(
 ) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
     """How a terminating step (a fall) enters GAE; returns (rewards, next_values, term, trunc).
 
-    Every objective is paid ``terminate_reward`` on the terminating step (None: its own rewards). With ``absorbing``, the
-    fall leads to an absorbing state that keeps paying it, so its value
+    Every objective is paid ``terminate_reward`` on the terminating step (None: its own rewards).
+    With ``absorbing``, the fall leads to an absorbing state that keeps paying it, so its value
     ``terminate_reward / (1 - gamma)`` is bootstrapped and the trace is cut there (passed on as a
     truncation); a ``terminate_reward`` below every reward the objectives can pay then makes a
     fall always lower the return. Without it (the authors' code), the value after the fall is 0.

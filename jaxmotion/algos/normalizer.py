@@ -74,10 +74,7 @@ def normalizer_update(
     """
     batch = jax.lax.stop_gradient(batch).astype(jnp.float32)
     batch = batch.reshape(-1, batch.shape[-1])
-    if mask is None:
-        weights = jnp.ones((batch.shape[0],), jnp.float32)
-    else:
-        weights = mask.astype(jnp.float32).reshape(-1)
+    weights = jnp.ones((batch.shape[0],), jnp.float32) if mask is None else mask.astype(jnp.float32).reshape(-1)
     weights = weights[:, None]
 
     n_b = jnp.sum(weights)

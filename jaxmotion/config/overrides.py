@@ -36,12 +36,11 @@ import typing
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from jaxmotion.config.errors import ConfigError
+
 _NONE_WORDS = ("none", "null")
 _TRUE_WORDS = ("true", "1", "yes", "on")
 _FALSE_WORDS = ("false", "0", "no", "off")
-
-
-from jaxmotion.config.errors import ConfigError
 
 
 class _ParseError(Exception):

@@ -18,6 +18,7 @@ before the next (``Task.sense``/``Task.place``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 from collections.abc import Sequence
 
@@ -305,7 +306,7 @@ class HumanoidEnv:
             if self.cfg.ref_within_limits:
                 qpos = self.within_limits(qpos)
             pos, quat = self.poses_of(qpos)
-            out.append(jax.vmap(lambda p, q: O.disc_obs(p, q, links, int(anchor)))(pos, quat))
+            out.append(jax.vmap(functools.partial(O.disc_obs, links=links, anchor=int(anchor)))(pos, quat))
         return tuple(out)
 
     def within_limits(self, qpos: jax.Array) -> jax.Array:

@@ -263,10 +263,10 @@ def run(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainStat
     names = res["switching"]["runs"] if switch_steps else ()  # ro["acting"] indexes these
     if names and (args.video or args.html):
         print(f"  acting policy (sphere over the head): {policy_legend(names)}")
-    if args.video:
-        print(f"video: {render_rollout(learner, ro, args.video, policies=names)}")
     if args.html:
         print(f"html: {write_rollout_html(learner, ro, args.html, policies=names)}")
+    if args.video:
+        print(f"video: {render_rollout(learner, ro, args.video, policies=names)}")
     if not args.no_plots and ro["meta_w"].shape[-1]:
         print(f"meta weights: {plot_meta_weights(learner, ro, args.run / 'meta_weights.png')}")
     if not args.no_plots:

@@ -118,7 +118,8 @@ def rollout(
 
     With a tuple of states and ``switch_steps`` > 0, their policies take turns every
     ``switch_steps`` steps on the same environments (they must share observation and action
-    spaces; ``actors`` gives each its own learner); ``info`` then also holds ``switch`` [T, E], true at the first step of each turn.
+    spaces; ``actors`` gives each its own learner); ``info`` then also holds ``switch`` [T, E],
+    true at the first step of each turn.
 
     Returns numpy arrays: ``pos`` [T+1, E, nb, 3], ``quat`` [T+1, E, nb, 4] (world frame, the
     initial state first), ``qpos`` [T+1, E, nq] (MuJoCo generalised positions, for rendering),

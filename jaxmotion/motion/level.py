@@ -9,8 +9,9 @@ leg in a deep squat.
 ``level_feet`` tilts the whole body, per frame in which both feet are planted, about a horizontal
 axis through the root, perpendicular to the line between the soles, until both soles are at the
 same height, and then moves it vertically so that they rest on the floor. The joint angles are
-not touched (beyond the clamp to the joint ranges), so every group's view relative to a link of the body is unchanged; only the root's
-orientation and height differ. Frames with a foot lifted (a step, a jump) are left as they are.
+not touched (beyond the clamp to the joint ranges), so every group's view relative to a link of
+the body is unchanged; only the root's orientation and height differ. Frames with a foot lifted
+(a step, a jump) are left as they are.
 """
 
 from __future__ import annotations

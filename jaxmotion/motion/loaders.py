@@ -356,7 +356,7 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
     ``.txt`` with ``"frames"`` (CompositeMotion, both layouts) or ``"Frames"`` (DeepMimic).
 
     Args:
-        path: file path, absolute or relative to ``$JAXMOTION_DATA`` (see ``jaxmotion.data``).
+        path: file path, absolute or relative to ``$JAXMOTION_DATA`` (see ``jaxmotion.motion.data``).
         character: the character to load onto; None = auto (poselib with 17 nodes -> sword-shield,
             everything else -> the 15-body humanoid). A file whose skeleton does not match -> error.
 

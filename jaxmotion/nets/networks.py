@@ -91,7 +91,7 @@ class GaussianPolicy(nn.Module):
         hidden layer with weights ``U(+-1e-4)`` and bias ``init_log_std``. False: a learned
         state-independent ``[A]`` parameter initialised to ``init_log_std``.
       init_log_std: initial ``log_std`` (-3 gives sigma ~ 0.05).
-      meta_size: > 0 for incremental learning (``meta.py``): a third output ``w [..., meta_size]``,
+      meta_size: > 0 for incremental learning (``training/meta.py``): a third output ``w [..., meta_size]``,
         a sigmoid head (``meta_weight``, weights U(+-1e-4), bias ``meta_weight_bias``) that
         weights a frozen meta policy's action; the ``mean`` head then starts at U(+-1e-4), so the
         new policy starts as the meta policy.
@@ -238,10 +238,7 @@ def head_input_grad_sq_norms(params: Params, x: jax.Array, activation: str = "re
         u = (u @ layers[i]["kernel"].T) * slopes[i - 1][:, None, :]  # [N, K, H_{i-1}]
     u = u.reshape(n * k, -1)
     w1 = layers[0]["kernel"]  # [D, H_1]
-    if w1.shape[0] > w1.shape[1]:
-        sq = _row_quadratic_forms(w1.T @ w1, u)
-    else:
-        sq = jnp.sum(jnp.square(u @ w1.T), axis=-1)
+    sq = _row_quadratic_forms(w1.T @ w1, u) if w1.shape[0] > w1.shape[1] else jnp.sum(jnp.square(u @ w1.T), axis=-1)
     return sq.reshape(n, k)
 
 

@@ -9,8 +9,9 @@ Collisions: a prop has contype ``PROP_BIT`` and conaffinity 1, so it bounces off
 (contype 1) and passes through the body and through other props; with a racket in the scene an
 explicit ``<pair>`` makes it bounce off the racket head, stiffer than the floor contact.
 
-Bounce (measured in MuJoCo C with a 57-g ball; the racket bounce is tested on both backends in ``tests/test_tennis.py``): MuJoCo's default soft
-contact (time constant 2 dt, damping ratio 1) rebounds at e ~ 0.05-0.15, so props use the direct
+Bounce (measured in MuJoCo C with a 57-g ball; the racket bounce is tested on both backends in
+``tests/test_tennis.py``): MuJoCo's default soft contact (time constant 2 dt, damping ratio 1)
+rebounds at e ~ 0.05-0.15, so props use the direct
 (-stiffness, -damping) form with the damping that gives ``restitution`` (``_solref``). On the
 floor (a half-space) stiffness 5000 rebounds at 0.74-0.76 from 2 to 12 m/s for 0.75 and at
 0.09-0.26 for 0 (the juggling balls), at 120 and 240 Hz; a landing ball sinks 0.2-5 cm into this

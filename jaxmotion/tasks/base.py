@@ -68,7 +68,7 @@ class Task:
 
     goal_parts: ClassVar[tuple[tuple[str, int], ...]] = ()
     """The goal features as named blocks (name, size), in observation order. A frozen meta
-    policy (``meta.py``) finds its own goal blocks in a new task's goal by these names."""
+    policy (``training/meta.py``) finds its own goal blocks in a new task's goal by these names."""
 
     @property
     def goal_size(self) -> int:

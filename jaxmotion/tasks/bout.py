@@ -157,8 +157,8 @@ class BoutTask(Task):
         """[2] the nearest distance from each player's scorer points to the opponent's targets."""
         out = []
         for k in range(2):
-            sp, _ = _points(jax.tree.map(lambda x: x[k], frame), self._sb, self._so)
-            tp, _ = _points(jax.tree.map(lambda x: x[1 - k], frame), self._tb, self._to)
+            sp, _ = _points(jax.tree.map(lambda x, k=k: x[k], frame), self._sb, self._so)
+            tp, _ = _points(jax.tree.map(lambda x, k=k: x[1 - k], frame), self._tb, self._to)
             out.append(jnp.min(jnp.linalg.norm(sp[:, None] - tp[None], axis=-1)))
         return jnp.stack(out)
 

@@ -79,9 +79,24 @@ def restore(
     if step is None:
         raise FileNotFoundError(f"no checkpoint in {mgr.directory}")
     slim = Path(mgr.directory) / str(step) / SLIM_FILE
-    skip = tuple(skip) + (tuple(json.loads(slim.read_text())["left_out"]) if slim.exists() else ())
-    abstract = {k: ocp.utils.to_shape_dtype_struct(x) for k, x in _flat(like).items() if not k.startswith(skip)}
-    flat = mgr.restore(step, args=ocp.args.StandardRestore(abstract))
+    left_out = tuple(json.loads(slim.read_text())["left_out"]) if slim.exists() else ()
+    abstract = {
+        k: ocp.utils.to_shape_dtype_struct(x)
+        for k, x in _flat(like).items()
+        if not k.startswith(tuple(skip) + left_out)
+    }
+    # Leaves skipped on purpose are on disk but not asked for: a partial restore,
+    # which must still find every leaf it asks for.
+    if skip:
+        args = ocp.args.PyTreeRestore(
+            item=abstract, restore_args=ocp.checkpoint_utils.construct_restore_args(abstract), partial_restore=True
+        )
+    else:
+        args = ocp.args.StandardRestore(abstract)
+    flat = mgr.restore(step, args=args)
+    missing = sorted(k for k in abstract if not isinstance(flat.get(k), jax.Array))
+    if missing:
+        raise ValueError(f"checkpoint {step} in {mgr.directory} has no {', '.join(missing[:5])}")
     paths, treedef = jax.tree_util.tree_flatten_with_path(like)
     leaves = [flat.get(jax.tree_util.keystr(p), x) for p, x in paths]
     return jax.tree_util.tree_unflatten(treedef, leaves), step

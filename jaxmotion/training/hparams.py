@@ -1,4 +1,4 @@
-"""The learner's hyperparameters: network sizes, PPO and the discriminators (``trainer.TrainConfig``
+"""The learner's hyperparameters: network sizes, PPO and the discriminators (``learner.TrainConfig``
 holds them with the environment and the run settings)."""
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ class NetConfig:
     """Heads per discriminator ensemble (N in the paper)."""
     meta_weight_bias: float = 3.0
     """Incremental learning: initial bias of the sigmoid meta-weight head (3: w = 0.95, so the
-    new policy starts as the meta policy; ``meta.py``)."""
+    new policy starts as the meta policy; ``training/meta.py``)."""
 
 
 @dataclasses.dataclass(frozen=True)

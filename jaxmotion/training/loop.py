@@ -1,7 +1,7 @@
 """Sharding and the compiled chunk: ``chunk`` learner iterations in one ``lax.scan`` under one
 ``jax.jit``, the state donated, the environment batch split over a 1-D ``data`` mesh and
 everything else replicated (XLA inserts the gradient all-reduce: synchronous data parallelism).
-The learner's pure iteration is ``trainer.Learner.iteration``."""
+The learner's pure iteration is ``learner.Learner.iteration``."""
 
 from __future__ import annotations
 

@@ -1,10 +1,11 @@
 """Incremental learning (Xu et al. 2023, §5, Eq. 10, Alg. 1): a new policy on a frozen meta policy.
 
-The new policy (``nets.policies.IncrementalPolicy``) is ``pi(a | s, g, a_meta) = N(mu + w * stop_gradient(a_meta), sigma^2)``: ``a_meta``
-is *sampled* from the frozen meta policy on its own slice of the observation (the body state and
-those of its goal blocks that the new task also has, found by name in ``Task.goal_parts``), and
-``mu``, ``sigma`` and ``w`` (one weight per action DoF) are outputs of the new network. ``a_meta``
-is stored in the rollout, because the PPO ratio depends on it.
+The new policy (``nets.policies.IncrementalPolicy``) is
+``pi(a | s, g, a_meta) = N(mu + w * stop_gradient(a_meta), sigma^2)``: ``a_meta`` is *sampled*
+from the frozen meta policy on its own slice of the observation (the body state and those of its
+goal blocks that the new task also has, found by name in ``Task.goal_parts``), and ``mu``,
+``sigma`` and ``w`` (one weight per action DoF) are outputs of the new network. ``a_meta`` is
+stored in the rollout, because the PPO ratio depends on it.
 
 Choices the paper leaves open (notes §2): ``w`` is a sigmoid head whose bias starts at
 ``NetConfig.meta_weight_bias`` (3: w = 0.95) and whose weights start at U(+-1e-4); the ``mu``

@@ -22,7 +22,7 @@ import numpy as np
 from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.training.learner import TrainConfig, TrainState
 from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
-from jaxmotion.training.runs import init_from, make_learner, new_run_dir
+from jaxmotion.training.runs import check_init_from, init_from, make_learner, new_run_dir
 
 
 @dataclasses.dataclass(frozen=True)
@@ -90,9 +90,9 @@ def _trim_metrics(path: Path, upto: int) -> None:
     """Drops log lines past ``upto`` iterations (written after the checkpoint a resume starts from)."""
     if not path.exists():
         return
-    keep = [l for l in path.read_text().splitlines() if l.strip() and json.loads(l)["iteration"] <= upto]
+    keep = [line for line in path.read_text().splitlines() if line.strip() and json.loads(line)["iteration"] <= upto]
     tmp = path.with_suffix(".tmp")
-    tmp.write_text("".join(l + "\n" for l in keep))
+    tmp.write_text("".join(line + "\n" for line in keep))
     tmp.replace(path)
 
 
@@ -119,6 +119,8 @@ def train(
         cfg = dataclasses.replace(
             saved, iterations=cfg.iterations, resume=cfg.resume, checkpoint_every=cfg.checkpoint_every
         )
+    if cfg.init_from:
+        check_init_from(cfg.init_from)
     learner = make_learner(cfg)  # before the run folder exists: bad clips or settings leave nothing behind
     run_dir = Path(run_dir) if run_dir is not None else new_run_dir(experiment)
     phys = learner.env.physics

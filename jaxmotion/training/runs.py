@@ -59,9 +59,7 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
     (or ``pretrained/<name>`` entry) at ``path``: parameters, optimiser states, observation,
     discriminator and PopArt statistics, and the iteration count, so a long training goes on
     where that run stopped. The networks must have the same shapes (same experiment settings)."""
-    path = Path(path)
-    if not (path / ckpt.CONFIG_FILE).exists():
-        raise InitFromError(f"init_from={path}: not a run folder or pretrained entry (no {ckpt.CONFIG_FILE})")
+    path = check_init_from(path)
     mgr = ckpt.manager(path)
     try:
         src, _ = ckpt.restore(mgr, ts, skip=ckpt.PER_ENV + (".rng",))
@@ -78,6 +76,14 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
 
 class InitFromError(JaxmotionError):
     """``init_from`` names something that cannot start this run."""
+
+
+def check_init_from(path: str | Path) -> Path:
+    """``path`` if it is a run folder or pretrained entry, else an ``InitFromError``."""
+    path = Path(path)
+    if not (path / ckpt.CONFIG_FILE).exists():
+        raise InitFromError(f"init_from={path}: not a run folder or pretrained entry (no {ckpt.CONFIG_FILE})")
+    return path
 
 
 def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:

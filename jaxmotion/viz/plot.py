@@ -221,7 +221,7 @@ def plot_run(run_dir: str | Path, out_dir: str | Path | None = None, smooth_wind
     cols = 3
     nrows = math.ceil(len(panels) / cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(5 * cols, 3.6 * nrows), dpi=90, squeeze=False)
-    for ax, (stem, title, keys) in zip(axes.flat, panels):
+    for ax, (_, title, keys) in zip(axes.flat, panels):
         _draw_run_panel(ax, rows, title, keys, smooth_window)
     for ax in list(axes.flat)[len(panels) :]:
         ax.axis("off")
@@ -425,7 +425,7 @@ def plot_compare(
         if len(labels) != len(grouped):
             raise ValueError(
                 f"{len(labels)} labels for {len(grouped)} curves: "
-                + "; ".join(f"{l} ({len(rs)} runs)" for l, rs in grouped)
+                + "; ".join(f"{label} ({len(rs)} runs)" for label, rs in grouped)
             )
         grouped = [(lab, rs) for lab, (_, rs) in zip(labels, grouped)]
     rows = {r: read_metrics(r) for r in run_dirs}

@@ -18,8 +18,8 @@ rollout episode 0, with the ghost replaying the *first* body group's reference c
 composite run, e.g. upper = chest_open + lower = squat, the ghost shows the upper group's clip
 as a whole-body motion; the other groups' clips are not drawn). The ghost's qpos comes from
 MotionLib ``sample`` + ``qpos_qvel`` of that group's first clip at the control rate, repeated to
-the episode length as ``eval.reference_sequence`` does, and moved rigidly (xy + yaw) so that its
-first root heading frame coincides with the simulation's first one, as ``eval.world_aligned``.
+the episode length as ``envs.reference.reference_sequence`` does, and moved rigidly (xy + yaw) so that its
+first root heading frame coincides with the simulation's first one, as ``envs.reference.world_aligned``.
 The task's goal markers are drawn over it; when several policies took turns (``eval --switch``),
 so is a sphere over the head in the acting policy's colour (``POLICY_COLORS``; eval prints which
 colour is which run).
@@ -38,6 +38,8 @@ from pathlib import Path
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
+
+from jaxmotion.config.errors import JaxmotionError
 from jaxmotion.envs.reference import align_pose, align_to_start, reference_state
 
 GHOST_PREFIX = "ghost_"
@@ -59,7 +61,7 @@ POLICY_COLORS = (
     ("lime", (0.6, 1.0, 0.1, 1.0)),
     ("black", (0.05, 0.05, 0.05, 1.0)),  # last: the least visible against the dusk sky
 )
-"""(name, RGBA) of the policies that take turns, in ``eval.rollout``'s order: unlike the group and
+"""(name, RGBA) of the policies that take turns, in ``evaluation.rollout.rollout``'s order: unlike the group and
 task-marker colours, so that the sphere over the head reads as "who acts", and named, so that a
 legend can be printed."""
 GHOST_RGBA = (0.85, 0.9, 1.0, 0.3)
@@ -141,12 +143,16 @@ def gl_backend() -> str | None:
     return None
 
 
+class NoGLError(JaxmotionError, RuntimeError):
+    """No headless OpenGL backend renders on this machine."""
+
+
 def require_gl() -> str:
-    """``gl_backend()`` or a RuntimeError saying what to install."""
+    """``gl_backend()`` or a ``NoGLError`` saying what to install."""
     b = gl_backend()
     if b is None:
         tried = os.environ.get("MUJOCO_GL") or "egl, osmesa"
-        raise RuntimeError(
+        raise NoGLError(
             f"no headless OpenGL backend works (tried MUJOCO_GL={tried}); install EGL "
             "(apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri) or OSMesa (libosmesa6)"
         )
@@ -157,9 +163,10 @@ def require_gl() -> str:
 def scene_mjcf(
     sword_shield: bool = False, ghost: bool = True, scenery: Sequence[Mapping[str, str]] = (), racket: bool = False
 ) -> str:
-    """MJCF of the character (``racket``: with the tennis racket) over the floor, plus (``ghost``) a translucent, collision-free copy
-    whose bodies, joints and geoms are named ``ghost_<name>``; its qpos follows the character's.
-    ``scenery``: extra static geoms (MJCF attribute dicts, e.g. ``physics.arena.scenery``)."""
+    """MJCF of the character (``racket``: with the tennis racket) over the floor, plus (``ghost``)
+    a translucent, collision-free copy whose bodies, joints and geoms are named ``ghost_<name>``;
+    its qpos follows the character's. ``scenery``: extra static geoms (MJCF attribute dicts, e.g.
+    ``physics.arena.scenery``)."""
     from jaxmotion.physics.character import build_mjcf
 
     root = ET.fromstring(build_mjcf(sword_shield, racket=racket))
@@ -206,8 +213,8 @@ def group_colors(
     """link index -> RGBA, group ``i`` in ``palette[i]``; a link in two groups keeps the first."""
     out: dict[int, tuple[float, ...]] = {}
     for i, links in enumerate(link_groups):
-        for l in np.asarray(links).reshape(-1):
-            out.setdefault(int(l), tuple(float(x) for x in palette[i % len(palette)]))
+        for link in np.asarray(links).reshape(-1):
+            out.setdefault(int(link), tuple(float(x) for x in palette[i % len(palette)]))
     return out
 
 
@@ -375,7 +382,7 @@ def acting_markers(head_pos: np.ndarray, acting: np.ndarray, num_policies: int) 
 
     Args:
       head_pos: [T, 3] world position of the head link.
-      acting: [T] int, the acting policy per frame (``eval.rollout``'s ``acting``).
+      acting: [T] int, the acting policy per frame (``evaluation.rollout.rollout``'s ``acting``).
       num_policies: how many policies take turns.
     """
     if num_policies < 2:
@@ -392,7 +399,7 @@ def acting_markers(head_pos: np.ndarray, acting: np.ndarray, num_policies: int) 
 def rollout_markers(
     learner, ro: Mapping[str, np.ndarray], episode: int, n: int, num_policies: int = 1
 ) -> dict[str, np.ndarray]:
-    """The first ``n`` frames' markers of one ``eval.rollout`` episode, name -> [n, 2, 3]: the
+    """The first ``n`` frames' markers of one ``evaluation.rollout.rollout`` episode, name -> [n, 2, 3]: the
     task's goal (``ro["markers"]``) and, when ``num_policies`` > 1, the acting policy's sphere."""
     out = {k: np.asarray(v)[:n, episode] for k, v in (ro.get("markers") or {}).items()}
     if num_policies > 1 and ro.get("acting") is not None:
@@ -545,7 +552,7 @@ def write_video(frames: np.ndarray | Iterable[np.ndarray], path: str | os.PathLi
 
 def reference_qpos(learner, group: int, num_frames: int) -> np.ndarray:
     """[num_frames, nq] qpos of the group's first clip at the control rate, repeated (as
-    ``eval.reference_sequence``), in the clip's own world frame."""
+    ``envs.reference.reference_sequence``), in the clip's own world frame."""
     from jaxmotion.motion.motionlib import qpos_qvel
 
     return np.asarray(qpos_qvel(reference_state(learner, group, num_frames))[0], np.float64)
@@ -570,7 +577,7 @@ def render_rollout(
     fps: float | None = None,
     policies: Sequence[str] = (),
 ) -> Path:
-    """Renders one episode of ``eval.rollout``'s output (alive frames only) with the ghost of
+    """Renders one episode of ``evaluation.rollout.rollout``'s output (alive frames only) with the ghost of
     ``group``'s reference clip (see the module docstring) and writes it to ``path``. ``policies``:
     names of the runs that took turns (``ro["acting"]`` indexes them); with two or more, a sphere
     over the head shows the acting one in its ``POLICY_COLORS`` colour (``policy_legend``)."""

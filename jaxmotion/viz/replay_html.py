@@ -200,9 +200,9 @@ def write_rollout_html(
     title: str | None = None,
     policies: Sequence[str] = (),
 ) -> Path:
-    """The replay page of one episode of ``eval.rollout``'s output (alive frames only), with
-    ``group``'s reference clip as the ghost (``eval.reference_sequence``, moved rigidly in xy +
-    yaw onto the simulation's first root frame as ``eval.world_aligned`` does) and the task's
+    """The replay page of one episode of ``evaluation.rollout.rollout``'s output (alive frames only), with
+    ``group``'s reference clip as the ghost (``envs.reference.reference_sequence``, moved rigidly in xy +
+    yaw onto the simulation's first root frame as ``envs.reference.world_aligned`` does) and the task's
     markers. ``policies``: names of the runs that took turns (``ro["acting"]`` indexes them); with
     two or more, the page names the acting one per frame and draws the video's sphere over the
     head in its colour."""
