@@ -108,13 +108,13 @@ def test_rollout_stores_the_meta_action_and_updates_leave_the_meta_policy_frozen
     with jit_enabled():
         ts1, traj = jax.jit(learner.rollout)(ts)
         T, B = traj.terminated.shape
-        assert traj.meta_action.shape == (T, B, learner.env.action_size)
+        assert traj.extra.shape == (T, B, learner.env.action_size)
         # The stored log-probs are those of the policy at the stored meta actions (PPO ratio 1).
         flat = lambda x: x.reshape((T * B,) + x.shape[2:])
 
         def logp(ts, traj):
             nobs = learner.normalize_obs(ts.obs_norm, flat(traj.obs))
-            mean, log_std = learner.policy_dist(ts.policy_params, nobs, flat(traj.meta_action))
+            mean, log_std = learner.policy.dist(ts.policy_params, nobs, flat(traj.extra))
             return PPO.gaussian_log_prob(mean, log_std, flat(traj.action))
 
         np.testing.assert_allclose(jax.jit(logp)(ts, traj), flat(traj.log_prob), atol=1e-4)

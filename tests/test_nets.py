@@ -118,3 +118,31 @@ def test_authors_init_options_critic_hidden_uniform_and_disc_gain():
     np.testing.assert_allclose(w @ w.T, 2 * np.eye(D), atol=1e-5)
     h = q["heads"]["kernel"]
     np.testing.assert_allclose(h.T @ h, np.eye(4), atol=1e-5)  # [8, 4]: the heads keep gain 1
+
+
+def test_policies_share_one_interface_and_the_incremental_one_adds_the_frozen_action():
+    """``nets/policies.py``: the learner only calls ``init``, ``extra``, ``dist`` and ``weights``.
+    A plain policy conditions on nothing and has no weights; the incremental policy's mean is
+    mu + w * a_meta with the meta action outside the gradient, and starts near the meta action."""
+    from jaxmotion.nets.policies import GaussianPolicy, IncrementalPolicy
+
+    obs_size, act, batch = 6, 3, 4
+    obs = jax.random.normal(jax.random.PRNGKey(0), (batch, obs_size))
+    plain = GaussianPolicy(obs_size, act, hidden_sizes=(8,))
+    pp = plain.init(jax.random.PRNGKey(1))
+    assert plain.extra(None, obs, None).shape == (batch, 0) and plain.weights(pp, obs).shape == (batch, 0)
+    mean, log_std = plain.dist(pp, obs, plain.extra(None, obs, None))
+    np.testing.assert_allclose(mean, plain.net.apply(pp, obs)[0])
+
+    meta_act = lambda frozen, o, rng: frozen * jnp.ones(o.shape[:-1] + (act,))
+    inc = IncrementalPolicy(obs_size, act, meta_act, meta_weight_bias=3.0, hidden_sizes=(8,))
+    ip = inc.init(jax.random.PRNGKey(2))
+    extra = inc.extra(2.0, obs, None)
+    np.testing.assert_allclose(extra, 2.0)
+    mean, _ = inc.dist(ip, obs, extra)
+    mu, _, w = inc.net.apply(ip, obs)
+    np.testing.assert_allclose(mean, mu + w * extra, rtol=1e-6)
+    np.testing.assert_allclose(inc.weights(ip, obs), w)
+    np.testing.assert_allclose(mean, 2.0 / (1.0 + np.exp(-3.0)), atol=1e-2)  # starts as 0.95 x the meta action
+    g = jax.grad(lambda e: inc.dist(ip, obs, e)[0].sum())(extra)
+    np.testing.assert_array_equal(g, 0.0)

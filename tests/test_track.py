@@ -15,6 +15,7 @@ import pytest
 from conftest import jit_enabled, train_scoring_last
 from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib, make_test_clip
+from jaxmotion.evaluation.rollout import programs
 from jaxmotion.tasks import TaskConfig, TrackConfig
 
 
@@ -308,7 +309,7 @@ def test_short_tracking_training_beats_untrained_policies(tmp_path):
         noisy, _ = TE.evaluate_clips(learner, ts, clips=clips, noise=1.0)
         _, ro = TE.evaluate_clips(learner, ts)  # the compiled evaluation is cached: cheap
         # The perturbed copies are an argument of the one compiled evaluation, not a second program.
-        assert len(learner._track_eval_cache) == 1
+        assert programs(learner, "tracking") == 1
         page = TE.write_track_html(learner, ro, tmp_path / "track.html").read_text()
         # Hard negatives: the clips an untrained policy fails are counted and sampled more often.
         mined, hard = TE.hard_negative_update(learner, untrained[1], tmp_path)

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion.evaluation.rollout import program
 from jaxmotion.physics.arena import PLAYER_RGBA, scenery
 from jaxmotion.training.runs import load_run
 from jaxmotion.viz.plot import learning_curves
@@ -31,10 +32,11 @@ from jaxmotion.viz.replay_html import character_geoms, write_html
 
 
 def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: bool):
-    cache = learner.__dict__.setdefault("_bout_cache", {})
     sig = (id(opponent_learner), bouts, steps, deterministic)
-    if sig in cache:
-        return cache[sig]
+    return program(learner, "bouts", sig, lambda: _play_program(learner, opponent_learner, bouts, steps, deterministic))
+
+
+def _play_program(learner, opponent_learner, bouts: int, steps: int, deterministic: bool):
     env = learner.env
     side = jnp.arange(bouts) % 2  # the evaluated policy's side in each bout
 
@@ -65,7 +67,6 @@ def _play_fn(learner, opponent_learner, bouts: int, steps: int, deterministic: b
         )
         return qpos, alive, info, term, trunc, mine
 
-    cache[sig] = run
     return run
 
 

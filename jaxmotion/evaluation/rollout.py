@@ -13,6 +13,21 @@ import numpy as np
 from jaxmotion.training.learner import Learner, TrainState
 
 
+def program(learner: Learner, kind: str, key, build):
+    """The compiled program ``build()`` makes, once per learner, kind of evaluation and ``key``
+    (shapes, clip set, opponent): evaluating several states (seeds, checkpoints, mining rounds) on
+    one learner compiles once. The cache lives on the learner, so it goes when the learner does."""
+    cache = learner.__dict__.setdefault("_programs", {})
+    if (kind, key) not in cache:
+        cache[(kind, key)] = build()
+    return cache[(kind, key)]
+
+
+def programs(learner: Learner, kind: str) -> int:
+    """How many programs of ``kind`` the learner has compiled (``program``)."""
+    return sum(k == kind for k, _ in learner.__dict__.get("_programs", {}))
+
+
 def acting_policy(t: jax.Array, switch_steps: int, num_policies: int) -> jax.Array:
     """Index of the policy that chooses the action at control step ``t`` when ``num_policies``
     take turns every ``switch_steps`` steps (0: the first one always). One definition serves the
@@ -36,10 +51,16 @@ def _rollout_fn(
     steps (policy switching: only the acting parameters change, the env state carries on).
     ``actors`` are the learners whose networks act for those states, one each (default: all
     ``learner``): runs that share spaces may differ in networks, e.g. one with a meta policy."""
-    cache = learner.__dict__.setdefault("_eval_rollout_cache", {})
     sig = (episodes, steps, deterministic, switch_steps, tuple(id(a) for a in actors))
-    if sig in cache:
-        return cache[sig]
+    return program(
+        learner,
+        "imitation",
+        sig,
+        lambda: _rollout_program(learner, episodes, steps, deterministic, switch_steps, actors),
+    )
+
+
+def _rollout_program(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int, actors):
     env = learner.env
 
     @jax.jit
@@ -100,7 +121,6 @@ def _rollout_fn(
             first(acting0, acting),
         )
 
-    cache[sig] = run
     return run
 
 

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion.envs.humanoid import HumanoidEnv
+from jaxmotion.evaluation.rollout import program
 from jaxmotion.motion.loaders import MotionFileError, load_clips
 from jaxmotion.motion.motionlib import MotionLib
 from jaxmotion.training.run import Hook
@@ -71,7 +72,7 @@ def _following(env: HumanoidEnv, lib: MotionLib):
 
 
 def _rollout_program(learner, env: HumanoidEnv):
-    """``track_rollout`` compiled for one learner and eval scene: ``program(ts, clips=None)``.
+    """``track_rollout`` compiled for one learner and eval scene: ``record(ts, clips=None)``.
 
     The clips are an argument of the compiled program (default: the scene's own), so perturbed
     copies of the same clips (every noise level and seed) reuse one compilation."""
@@ -122,7 +123,7 @@ def _rollout_program(learner, env: HumanoidEnv):
             first(ref_qpos(state.goal), rq),
         )
 
-    def program(ts, clips: MotionLib | None = None):
+    def record(ts, clips: MotionLib | None = None):
         sim, ref, played, failed, qpos, rq = jax.device_get(run(ts, lib if clips is None else clips))
         return {
             "sim": sim,
@@ -134,7 +135,7 @@ def _rollout_program(learner, env: HumanoidEnv):
             "ref_qpos": rq,
         }
 
-    return program
+    return record
 
 
 def _ref_qpos(env, goal):
@@ -273,13 +274,14 @@ def evaluate_clips(
         tracked = MotionLib.from_clips([perturb_clip(c, noise, r) for c, r in zip(clips, rngs)]) if noise else clean
     # One compiled program per learner and clip set: evaluating several states (seeds, checkpoints,
     # hard-negative rounds) and perturbed copies of the clips (noise levels, seeds) compiles once.
-    cache = learner.__dict__.setdefault("_track_eval_cache", {})
     key = (tuple(names), tuple(np.asarray(tracked.clip_len).tolist()), tuple(np.asarray(tracked.clip_fps).tolist()))
-    if key not in cache:
+
+    def build():
         env = eval_env(learner, tracked)
-        cache[key] = (env, _rollout_program(learner, env))
-    env, program = cache[key]
-    ro = program(ts, tracked)
+        return env, _rollout_program(learner, env)
+
+    env, run = program(learner, "tracking", key, build)
+    ro = run(ts, tracked)
     if noise:
         ro["ref"] = clean_reference(env, clean, ro["ref"].shape[0] - 1)
         # Failure is judged against the clean clip as well: 0.5 m mean error at any played frame.
