@@ -35,7 +35,7 @@ bench: $(STAMP)
 # A first look: the shipped Table 1 policy, evaluated briefly, as a video and a 3D replay page.
 DEMO ?= pretrained/chest_open+squat_cpu
 demo: $(STAMP)
-	$(PY) -m jaxmotion.eval $(DEMO) --episodes 1 --no-plots --json demo/metrics.json --video demo/demo.mp4 --html demo/demo.html
+	$(PY) -m jaxmotion.eval $(DEMO) --episodes 1 --steps 150 --no-plots --json demo/metrics.json --video demo/demo.mp4 --html demo/demo.html
 
 lint: $(STAMP)
 	$(PY) -m ruff check jaxmotion tests experiments

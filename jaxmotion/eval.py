@@ -23,6 +23,12 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m jaxmotion.eval", description=__doc__.split("\n")[0])
     p.add_argument("run", type=Path, help="run folder (runs/<experiment>/<timestamp>) or pretrained/<name>")
     p.add_argument("--episodes", type=int, default=None, help="episodes (default: the config's eval_episodes)")
+    p.add_argument(
+        "--steps",
+        type=int,
+        default=None,
+        help="control steps per episode or bout (default: the config's episode length)",
+    )
     p.add_argument("--json", type=Path, default=None, help="also write the metrics here")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
@@ -45,6 +51,9 @@ def parser() -> argparse.ArgumentParser:
 @cli_errors
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    for out in (args.json, args.video, args.html):
+        if out is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
     try:
         experiment, cfg, learner, ts = load_run(args.run)
     except FileNotFoundError as e:

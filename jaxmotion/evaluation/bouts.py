@@ -258,7 +258,7 @@ def run(args, experiment: str, cfg, learner, ts) -> int:
     for name, op in opponents:
         entry = {"experiment": experiment, "samples": samples, "opponent": name}
         for mode, det in (("deterministic", True), ("stochastic", False)):
-            res, ro = play(learner, ts, op, args.bouts, seed=args.seed, deterministic=det)
+            res, ro = play(learner, ts, op, args.bouts, steps=args.steps, seed=args.seed, deterministic=det)
             print_summary(f"vs {Path(name).name} ({mode})", res, sport)
             if det:
                 entry.update(res)

@@ -203,7 +203,7 @@ def run(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainStat
         learner,
         policies,
         args.episodes or cfg.eval_episodes,
-        cfg.env.episode_steps,
+        args.steps or cfg.env.episode_steps,
         args.seed,
         switch_steps=switch_steps,
         actors=actors,
