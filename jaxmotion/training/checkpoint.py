@@ -26,8 +26,18 @@ from jaxmotion import config as C
 
 CONFIG_FILE = "config.json"
 SLIM_FILE = "slim.json"
-PER_ENV = (".env_state", ".obs")
-"""Key prefixes of the per-environment leaves that a slim checkpoint leaves out."""
+PER_ENV = ("env_state", "obs")
+"""The ``TrainState`` fields holding per-environment leaves, which a slim checkpoint leaves out."""
+
+
+def field_of(key: str) -> str:
+    """The top-level field a leaf's key path names: ``.obs_norm.mean`` -> ``obs_norm``,
+    ``['a']`` -> ``a``. Matching whole fields, not key prefixes: ``.obs`` is no prefix match for
+    ``.obs_norm`` (slim copies written before 2026-12-07 lost the observation statistics so)."""
+    head = key.lstrip(".").split(".", 1)[0]
+    if head.startswith("['"):
+        return head[2:].split("']", 1)[0]
+    return head.split("[", 1)[0]
 
 
 def write_config(run_dir: Path, experiment: str, cfg: Any, resolved: dict | None = None) -> None:
@@ -73,17 +83,16 @@ def restore(
     mgr: ocp.CheckpointManager, like: Any, step: int | None = None, skip: tuple[str, ...] = ()
 ) -> tuple[Any, int]:
     """Restores the latest (or given) checkpoint into the structure and shardings of ``like``;
-    leaves whose key starts with one of ``skip`` (and those a slim checkpoint left out) keep
-    ``like``'s values."""
+    leaves of the fields in ``skip`` (and those a slim checkpoint left out) keep ``like``'s values."""
     step = mgr.latest_step() if step is None else step
     if step is None:
         raise FileNotFoundError(f"no checkpoint in {mgr.directory}")
     slim = Path(mgr.directory) / str(step) / SLIM_FILE
-    left_out = tuple(json.loads(slim.read_text())["left_out"]) if slim.exists() else ()
+    left_out = tuple(f.lstrip(".") for f in json.loads(slim.read_text())["left_out"]) if slim.exists() else ()
     abstract = {
         k: ocp.utils.to_shape_dtype_struct(x)
         for k, x in _flat(like).items()
-        if not k.startswith(tuple(skip) + left_out)
+        if field_of(k) not in tuple(skip) + left_out
     }
     # Leaves skipped on purpose are on disk but not asked for: a partial restore,
     # which must still find every leaf it asks for.
@@ -114,7 +123,7 @@ def slim(run_dir: Path, out_dir: Path, like: Any) -> int:
         if f.is_file():
             shutil.copy2(f, out_dir / f.name)
     out = manager(out_dir)
-    kept = {k: x for k, x in _flat(state).items() if not k.startswith(PER_ENV)}
+    kept = {k: x for k, x in _flat(state).items() if field_of(k) not in PER_ENV}
     out.save(step, args=ocp.args.StandardSave(kept))
     out.wait_until_finished()
     out.close()

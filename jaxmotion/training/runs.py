@@ -62,7 +62,7 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
     path = check_init_from(path)
     mgr = ckpt.manager(path)
     try:
-        src, _ = ckpt.restore(mgr, ts, skip=ckpt.PER_ENV + (".rng",))
+        src, _ = ckpt.restore(mgr, ts, skip=ckpt.PER_ENV + ("rng",))
     except FileNotFoundError as e:
         raise InitFromError(f"init_from={path}: {e}") from None
     except ValueError as e:  # orbax: a leaf of another shape or a missing leaf
