@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -10,7 +12,7 @@ import pytest
 from mujoco import mjx
 
 from conftest import jit_enabled
-from jaxmotion.physics import sim
+from jaxmotion.physics import servo, sim
 from jaxmotion.physics.character import build_mjcf, character
 
 STAND_Z = 0.89  # root height with feet on the floor in the zero pose
@@ -149,3 +151,46 @@ def test_contact_solver_converges_in_a_squat(data_dir):
     capped = [_squat_peak_speed(clip, sim.PhysicsConfig(solver_iterations=4, ls_iterations=8), f, s) for f, s in runs]
     assert max(default) < 0.7 * limit, default
     assert sum(p > limit for p in capped) >= 3, capped
+
+
+def _mjx_reach(cfg: sim.PhysicsConfig) -> np.ndarray:
+    """``servo.reach`` on MJX: the same welded-root sweeps, stepped by the MJX backend's substep."""
+    from jaxmotion.physics import backends
+
+    m = servo.fixed_base_model(cfg)
+    mx = mjx.put_model(m)
+    n = int(round(servo.PROBE_SECONDS * cfg.sim_hz))
+
+    def sweep(q0, target):
+        d = mjx.make_data(mx).replace(qpos=q0, ctrl=target)
+        _, qd = jax.lax.scan(lambda d, _: (lambda d1: (d1, jnp.abs(d1.qvel)))(backends.mjx_substep(mx, d)), d, None, n)
+        return qd.max(0)
+
+    with jit_enabled():
+        f = jax.jit(sweep)
+        return np.max(
+            [np.asarray(f(jnp.asarray(q, jnp.float32), jnp.asarray(t, jnp.float32))) for q, t in servo.probe_starts(m)],
+            0,
+        )
+
+
+@pytest.mark.physics
+def test_servo_reaches_past_the_tracker_clips_on_both_backends(data_dir):
+    """Every joint turns faster than the 99th-percentile speed of the tracker's training clips
+    (``track/medium``: a run, a kick, a jump, punches), on MuJoCo C and on MJX alike; with the
+    damping on the joint (``servo_damping='joint'``) most joints cannot."""
+    from jaxmotion.config import load_experiment
+    from jaxmotion.motion import load_clips
+
+    cfg = load_experiment("track/medium")
+    clips = load_clips(cfg.env.init_motions)
+    # Pooled over every frame of every clip (one 47-frame kick alone has a 45 rad/s shoulder
+    # spike in its Euler angles, above its own 99th percentile of frames).
+    need = np.percentile(np.concatenate([np.abs(np.diff(c.dof_pos, axis=0)) * c.fps for c in clips]), 99, axis=0)
+    assert need.max() > 15.0  # the punches' shoulders and the run's knees
+    phys = sim.PhysicsConfig()
+    c_reach, mjx_reach = servo.reach(phys), _mjx_reach(phys)
+    np.testing.assert_allclose(mjx_reach, c_reach, rtol=0.05)
+    assert (c_reach > need).all(), dict(zip(character().joint_names, np.round(c_reach / need, 2)))
+    damped = servo.reach(dataclasses.replace(phys, servo_damping="joint"))
+    assert (damped < need).mean() > 0.5 and damped.max() < 6.0

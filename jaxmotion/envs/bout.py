@@ -31,7 +31,7 @@ from flax import struct
 from mujoco import mjx
 
 from jaxmotion.motion import observations as O
-from jaxmotion.envs.humanoid import StepOut, joint_arrays, lowest_point
+from jaxmotion.envs.humanoid import StepOut, joint_arrays, lowest_point, safe_action
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import load_motionlib, qpos_qvel, sample, sample_times
 from jaxmotion.physics import arena as A
@@ -190,11 +190,12 @@ class BoutEnv:
     ) -> tuple[BoutState, StepOut]:
         """One control step of both players (``action`` [2, A]); see the module docstring."""
         cfg = self.cfg
+        action, bad_action = safe_action(action)
         data, ground, forces = self.physics.step_forces(state.data, self.pd_target(action))
         ground = ground.reshape(PLAYERS, self.layout.nb)
         steps = state.steps + 1
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
-        unstable = ~finite | jnp.any(jnp.abs(data.qvel) > cfg.max_qvel)
+        unstable = bad_action | ~finite | jnp.any(jnp.abs(data.qvel) > cfg.max_qvel)
         clean = lambda x: jnp.where(unstable, 0.0, jnp.nan_to_num(x, posinf=0.0, neginf=0.0))
         frame = jax.tree.map(clean, self.frames_of(data.qpos, data.qvel))
         fell = jnp.any(ground & self._bad_body, -1) & (steps > cfg.contact_grace_steps) & cfg.early_termination

@@ -390,6 +390,7 @@ class HumanoidEnv:
         ``where`` below keeps it only where an episode ended).
         """
         cfg = self.cfg
+        action, bad_action = safe_action(action)
         target = self.pd_target(action, self.task.pd_base(state.goal))
         data, ground, force = self.physics.step_forces(state.data, target)
         # Contacts are those of the last substep's collision pass (one substep old); the link
@@ -401,7 +402,7 @@ class HumanoidEnv:
         steps = state.steps + 1
         finite = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
         # Only the character's speeds: a struck ball may spin faster than any joint may turn.
-        unstable = ~finite | jnp.any(jnp.abs(qvel_c) > cfg.max_qvel)
+        unstable = bad_action | ~finite | jnp.any(jnp.abs(qvel_c) > cfg.max_qvel)
         fell = cfg.early_termination & jnp.any(touching) & (steps > cfg.contact_grace_steps)
         terminated = fell | unstable
         truncated = (steps >= cfg.episode_steps) & ~terminated
@@ -433,6 +434,20 @@ class HumanoidEnv:
             task_reward=task_reward,
             info=task.info,
         )
+
+
+ACTION_LIMIT = 1e3
+"""|action| above this is absurd: a PD target a thousand half-ranges past the joint's middle (a
+policy saturates the servo from |action| = 0.5 at the default ``action_scale``). MuJoCo C refuses
+controls above 1e10 with a warning and steps on with them zeroed while MJX clips them, so such an
+action, like a non-finite one, is treated as unstable physics on both backends."""
+
+
+def safe_action(action: jax.Array, limit: float = ACTION_LIMIT) -> tuple[jax.Array, jax.Array]:
+    """(``action`` with zeros in place of a non-finite or absurd one, whether it was): the
+    environment is reset like one whose state went non-finite, and the physics never sees it."""
+    bad = ~jnp.all(jnp.isfinite(action) & (jnp.abs(action) <= limit))
+    return jnp.where(bad, jnp.zeros_like(action), action), bad
 
 
 def joint_arrays(ch, allowed_contacts: Sequence[str]) -> tuple[jax.Array, ...]:

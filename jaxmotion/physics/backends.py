@@ -20,10 +20,16 @@ very same JAX code from the same ``qpos``/``qvel``.
 
 Under ``shard_map`` each device's callback steps its own shard; calls from several devices are
 serialised (the pool already uses every core).
+
+MuJoCo C reports trouble (a NaN control, a diverging state) through ``mju_warning``, whose default
+handler appends to ``MUJOCO_LOG.TXT`` in the working directory, once per affected rollout, with no
+bound. ``WARNINGS`` replaces that handler as soon as a C backend is built: it counts the warnings per
+message, and the training driver writes the counts into the run folder.
 """
 
 from __future__ import annotations
 
+import collections
 import functools
 import os
 import threading
@@ -35,6 +41,37 @@ import numpy as np
 from mujoco import mjx
 
 BACKENDS = ("auto", "mjx", "mujoco")
+
+
+class WarningCounter:
+    """MuJoCo's warnings, counted per message (the simulation time stripped), instead of written
+    to ``MUJOCO_LOG.TXT`` in the working directory. The handler is process-wide and is called
+    from the rollout pool's threads, hence the lock."""
+
+    def __init__(self):
+        self._counts: collections.Counter[str] = collections.Counter()
+        self._lock = threading.Lock()
+        self.installed = False
+
+    def install(self) -> None:
+        """Routes MuJoCo's warnings here (idempotent)."""
+        if not self.installed:
+            mujoco.set_mju_user_warning(self._on_warning)
+            self.installed = True
+
+    def _on_warning(self, message: str) -> None:
+        with self._lock:
+            self._counts[message.split(" Time =")[0].strip()] += 1
+
+    def take(self) -> dict[str, int]:
+        """The warnings counted since the last ``take`` (message -> count), and a fresh count."""
+        with self._lock:
+            out, self._counts = dict(self._counts), collections.Counter()
+        return out
+
+
+WARNINGS = WarningCounter()
+"""The process's MuJoCo warnings (``WarningCounter``); installed by the MuJoCo C backend."""
 
 
 def resolve_backend(name: str) -> str:
@@ -89,6 +126,38 @@ def channel_forces_mjx(data: mjx.Data, channels) -> jax.Array:
     return jnp.stack(out).astype(jnp.float32)
 
 
+def _clamped_servo(model: mjx.Model, data: mjx.Data) -> tuple[mjx.Model, mjx.Data]:
+    """The model and data of one MJX substep with every saturated PD actuator treated as MuJoCo C
+    treats it.
+
+    The servo is ``clip(kp*(ctrl - q) - kd*qdot, ±limit)``. With ``implicitfast`` MuJoCo C leaves an
+    actuator whose force is clamped out of the implicit damping (its force no longer depends on
+    qdot); MJX differentiates the unclamped bias and keeps it, so one saturated substep parted the
+    engines by tens of rad/s. Here a saturated actuator gets ``kd = 0`` and the control whose
+    undamped force is exactly its limit: the same force, and no implicit damping, as in C. An
+    unsaturated actuator is unchanged. Every actuator is a position servo on one joint (``kp`` in
+    ``gainprm[0]``, ``-kp, -kd`` in ``biasprm[1:3]``; ``physics/character.py``)."""
+    trn = np.asarray(model.actuator_trnid)[:, 0]
+    q = data.qpos[np.asarray(model.jnt_qposadr)[trn]]
+    qd = data.qvel[np.asarray(model.jnt_dofadr)[trn]]
+    kp, kd = model.actuator_gainprm[:, 0], -model.actuator_biasprm[:, 2]
+    lo, hi = model.actuator_forcerange[:, 0], model.actuator_forcerange[:, 1]
+    force = kp * (data.ctrl - q) - kd * qd
+    limited = jnp.asarray(np.asarray(model.actuator_forcelimited, bool))
+    sat = limited & ((force < lo) | (force > hi))
+    edge = jnp.where(force > hi, hi, lo)
+    ctrl = jnp.where(sat, q + edge / jnp.where(kp == 0, 1.0, kp), data.ctrl)
+    bias = model.actuator_biasprm.at[:, 2].set(jnp.where(sat, 0.0, -kd))
+    return model.replace(actuator_biasprm=bias), data.replace(ctrl=ctrl)
+
+
+def mjx_substep(model: mjx.Model, data: mjx.Data) -> mjx.Data:
+    """One MJX physics step holding ``data.ctrl``, with saturated servos as in MuJoCo C
+    (``_clamped_servo``); the returned data keeps the PD targets as its ``ctrl``."""
+    m, d = _clamped_servo(model, data)
+    return mjx.step(m, d).replace(ctrl=data.ctrl)
+
+
 class MJXPhysics:
     """MJX stepping (``impl`` 'jax' or 'warp')."""
 
@@ -106,7 +175,7 @@ class MJXPhysics:
 
         def sub(carry, _):
             d, fmax = carry
-            d = mjx.step(self.model, d)
+            d = mjx_substep(self.model, d)
             return (d, jnp.maximum(fmax, channel_forces_mjx(d, self.channels))), None
 
         f0 = jnp.zeros((len(self.channels),), jnp.float32)
@@ -124,7 +193,7 @@ class MJXPhysics:
 def mjx_pd_step(model: mjx.Model, data: mjx.Data, target: jax.Array, substeps: int) -> mjx.Data:
     """Holds ``target`` joint positions with the model's PD actuators for ``substeps`` MJX steps."""
     data = data.replace(ctrl=target)
-    data, _ = jax.lax.scan(lambda d, _: (mjx.step(model, d), None), data, None, length=substeps)
+    data, _ = jax.lax.scan(lambda d, _: (mjx_substep(model, d), None), data, None, length=substeps)
     return data
 
 
@@ -198,6 +267,7 @@ class MujocoPhysics:
         ):
             getattr(m, f)[:] = getattr(params_from, f)
         m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+        WARNINGS.install()
         self.mj = m
         self.model = model
         self.substeps = substeps
