@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from jaxmotion.motion import rotations as rot
+from jaxmotion.motion.frame_ranges import format_ranges, resolve_range
 from jaxmotion.physics.character import Character, character
 
 FORMATS = ("compositemotion_json", "deepmimic_txt", "poselib_npy", "generated")
@@ -226,8 +227,9 @@ def build_clip(
 
 
 def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
-    """The frames of ``ranges`` (Python slices ``[start, stop)`` of frame indices, ``stop`` None =
-    to the end), joined in order into one clip that does not loop.
+    """The frames of ``ranges`` (Python slices ``[start, stop)`` of frame indices, negative ends
+    counted from the end, ``stop`` None = to the end), joined in order into one clip that does not
+    loop.
 
     Each later range's root is shifted horizontally (xy only, no turn) to carry on from where the
     previous one ended, at its last horizontal step, and the velocities are recomputed across the
@@ -241,10 +243,10 @@ def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
     n = clip.num_frames
     parts = []
     for start, stop in ranges:
-        stop = n if stop is None else stop
-        if not 0 <= start < stop <= n:
-            raise ValueError(f"frames [{start}:{stop}] are not within the clip's {n} frames")
-        parts.append(np.arange(start, stop))
+        lo, hi = resolve_range(start, stop, n)
+        if lo >= hi:
+            raise ValueError(f"frames [{format_ranges(((start, stop),))}] select no frame of the clip's {n}")
+        parts.append(np.arange(lo, hi))
     root = [clip.root_pos[parts[0]]]
     for idx in parts[1:]:
         seg = clip.root_pos[idx].copy()
@@ -253,9 +255,9 @@ def select_frames(clip: Clip, ranges: Sequence[tuple[int, int | None]]) -> Clip:
         seg[:, :2] += prev[-1, :2] + step - seg[0, :2]
         root.append(seg)
     idx = np.concatenate(parts)
+    spec = format_ranges(ranges)
     if idx.size < 2:
-        raise ValueError(f"frames {list(ranges)} select {idx.size} frame; a clip needs at least 2")
-    spec = ",".join(f"{a}:{'' if b is None else b}" for a, b in ranges)
+        raise ValueError(f"frames [{spec}] select {idx.size} frame of the clip's {n}; a clip needs at least 2")
     return build_clip(
         name=f"{clip.name}[{spec}]",
         path=clip.path,

@@ -11,7 +11,11 @@ rotations and skeleton offsets (the character's offsets for JSON, ``local_transl
 DeepMimic files give per-frame durations; when they are not all equal (``humanoid3d_roll`` has
 one double-length frame) the clip is resampled onto a uniform grid at the median frame rate.
 
-Any problem with the input raises ``MotionFileError`` naming the file and the problem.
+Any problem with the input raises ``MotionFileError`` naming the file and the problem: malformed
+or wrongly typed values (a bool is not a number), NaN/inf, and finite values no body can have
+(``plausibility``: fps outside 1-1000, a root jumping 100 m between frames or under the floor, ...).
+poselib ``.npy`` files are unpickled by ``safe_pickle``, which refuses every global but numpy's
+array reconstructors and plain containers, so a clip cannot run code.
 """
 
 from __future__ import annotations
@@ -19,7 +23,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import re
 from pathlib import Path
 from collections.abc import Iterable
 
@@ -27,9 +30,12 @@ import numpy as np
 
 from jaxmotion.config.errors import JaxmotionError
 from jaxmotion.motion.data import data_dir, resolve
+from jaxmotion.motion import plausibility as plaus
 from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import Clip, build_clip, select_frames
 from jaxmotion.motion.convert import local_quats_to_dof, reference_body_pos
+from jaxmotion.motion.frame_ranges import Ranges, format_ranges, split_frame_ranges
+from jaxmotion.motion.safe_pickle import NotPickledObject, RefusedPickle, load_pickled_npy
 from jaxmotion.physics.character import Character
 from jaxmotion.physics.character import character as _character
 
@@ -53,13 +59,17 @@ _DEEPMIMIC_LAYOUT = (
 _DEEPMIMIC_WIDTH = 8 + sum(w for _, w in _DEEPMIMIC_LAYOUT)  # 44
 # y-up -> z-up: +90 degrees about x, p' = (x, -z, y).
 _YUP_TO_ZUP = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
+_MAX_PROBLEM = 400
 
 
 class MotionFileError(JaxmotionError, ValueError):
-    """A motion file could not be read; the message names the file and the problem."""
+    """A motion file could not be read; the message names the file and the problem, on one line
+    (a file's values can be anything: a problem is cut to ``_MAX_PROBLEM`` characters)."""
 
     @property
     def hint(self) -> str:
+        if not any(s in self.problem for s in ("no such file", "no motion files")):
+            return ""  # a bad file's problem is in the file, not in where clips are looked for
         return (
             f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); point it at "
             f"the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`."
@@ -67,7 +77,8 @@ class MotionFileError(JaxmotionError, ValueError):
 
     def __init__(self, path: str | os.PathLike, problem: str):
         self.path = str(path)
-        self.problem = problem
+        problem = " ".join(str(problem).split())
+        self.problem = problem if len(problem) <= _MAX_PROBLEM else problem[: _MAX_PROBLEM - 3] + "..."
         super().__init__(f"{self.path}: {problem}")
 
 
@@ -99,13 +110,11 @@ def _check_finite(path, a: np.ndarray, field: str) -> None:
 
 
 def _check_fps(path, fps) -> float:
-    try:
-        f = float(fps)
-    except (TypeError, ValueError):
-        raise MotionFileError(path, f"bad fps {fps!r} (need a positive number)") from None
-    if not np.isfinite(f) or f <= 0:
-        raise MotionFileError(path, f"bad fps {fps!r} (need a finite number > 0)")
-    return f
+    """A file's frame rate as a float: a real number (not a bool or string) in ``plausibility.FPS_RANGE``."""
+    problem = plaus.fps_problem(fps)
+    if problem:
+        raise MotionFileError(path, problem)
+    return float(plaus.real_number(fps))
 
 
 def _check_frames(path, n: int) -> None:
@@ -114,13 +123,12 @@ def _check_frames(path, n: int) -> None:
 
 
 def _unit_quats(path, q: np.ndarray, field: str) -> np.ndarray:
-    """Validates [T, ..., 4] quaternions (finite, non-zero) and normalises them."""
+    """Validates [T, ..., 4] quaternions (finite, length near 1) and normalises them."""
     _check_finite(path, q, field)
-    n = np.linalg.norm(q, axis=-1)
-    if (n < 1e-6).any():
-        t = int(np.argwhere(n < 1e-6)[0][0])
-        raise MotionFileError(path, f"zero-length quaternion in {field!r} at frame {t}")
-    return q / n[..., None]
+    problem = plaus.quat_norm_problem(q, field)
+    if problem:
+        raise MotionFileError(path, problem)
+    return q / np.linalg.norm(q, axis=-1)[..., None]
 
 
 def _xyzw_to_wxyz(q: np.ndarray) -> np.ndarray:
@@ -130,15 +138,48 @@ def _xyzw_to_wxyz(q: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------- readers
 
 
+def _non_number(value) -> object:
+    """The first leaf of nested lists/arrays that is not a real number (a bool, string, None, dict
+    or non-numeric array), a container met twice (a pickle can share or nest a list in itself),
+    or ``_NUMBERS_OK``. Iterative: a file's nesting can be any depth."""
+    stack, seen = [value], set()
+    while stack:
+        v = stack.pop()
+        if isinstance(v, (list, tuple)):
+            if id(v) in seen:
+                return v
+            seen.add(id(v))
+            stack.extend(v)
+        elif isinstance(v, np.ndarray):
+            if v.dtype.kind not in "iuf":
+                return v
+        elif isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            return v
+    return _NUMBERS_OK
+
+
+_NUMBERS_OK = object()
+
+
 def _as_array(path, value, shape_tail: tuple[int, ...], field: str) -> np.ndarray:
+    """``value`` as a float64 array [T, *shape_tail]: only real numbers (no bools, strings or
+    nulls, which numpy would silently convert), finite, in that shape."""
+    shape = f"[{', '.join(['T', *map(str, shape_tail)])}]"
+    bad = _non_number(value)
+    if bad is not _NUMBERS_OK:
+        if isinstance(bad, np.ndarray):
+            what = f"an array of {bad.dtype}"
+        elif isinstance(bad, (list, tuple)):
+            what = "a list nested in itself (or one list twice)"
+        else:
+            what = plaus._short(bad, 40)
+        raise MotionFileError(path, f"{field!r} holds {what}, not a number")
     try:
         a = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise MotionFileError(
-            path, f"{field!r} is not a numeric array of shape [T, {', '.join(map(str, shape_tail))}]"
-        ) from None
+    except (TypeError, ValueError, OverflowError):
+        raise MotionFileError(path, f"{field!r} is not a numeric array of shape {shape}") from None
     if a.ndim != 1 + len(shape_tail) or a.shape[1:] != shape_tail:
-        raise MotionFileError(path, f"{field!r} has shape {a.shape}, expected [T, {', '.join(map(str, shape_tail))}]")
+        raise MotionFileError(path, f"{field!r} has shape {a.shape}, expected {shape}")
     return a
 
 
@@ -207,10 +248,9 @@ def _read_deepmimic(path, d: dict) -> _Raw:
         )
     a = _as_array(path, frames, (_DEEPMIMIC_WIDTH,), "Frames")
     dts = a[:-1, 0]
-    bad = np.argwhere(~np.isfinite(dts) | (dts <= 0))
-    if bad.size:
-        t = int(bad[0][0])
-        raise MotionFileError(path, f"bad fps: frame {t} has dt {float(a[t, 0])!r} (need a finite dt > 0)")
+    problem = plaus.frame_time_problem(dts)  # also NaN; a frame of 1e6 s would resample to millions
+    if problem:
+        raise MotionFileError(path, problem)
     _check_finite(path, a[:, 1:4], "root position")
     p = a[:, 1:4]
     root_pos = np.stack([p[:, 0], -p[:, 2], p[:, 1]], axis=-1)
@@ -226,6 +266,9 @@ def _read_deepmimic(path, d: dict) -> _Raw:
             local[:, b] = _yup_to_zup_quat(_unit_quats(path, v, name))
         else:  # A revolute angle about local z (y-up) is -theta about the z-up y axis.
             _check_finite(path, v, name)
+            problem = plaus.magnitude_problem(v, plaus.MAX_HINGE_ANGLE, f"{name!r} angle", "rad")
+            if problem:
+                raise MotionFileError(path, problem)
             theta = -v[:, 0]
             local[:, b] = np.stack([np.cos(theta / 2), 0 * theta, np.sin(theta / 2), 0 * theta], -1)
         col += w
@@ -267,41 +310,55 @@ def _npy_field(path, d: dict, key: str):
     return v["arr"] if isinstance(v, dict) and "arr" in v else v
 
 
-def _read_poselib(path, character_hint: Character | None) -> _Raw:
-    """poselib ``SkeletonMotion`` saved with ``np.save`` (a pickled dict of numpy arrays).
-
-    Note: ``allow_pickle=True`` runs pickle, so only load files you trust.
-    """
+def _read_npy_dict(path) -> dict:
+    """The pickled dict of a poselib ``.npy``, through ``safe_pickle`` (no code runs)."""
     try:
-        obj = np.load(path, allow_pickle=True)
-    except Exception as e:  # noqa: BLE001 - any reader failure is a bad file
+        d = load_pickled_npy(path)
+    except RefusedPickle as e:
+        raise MotionFileError(path, str(e)) from None
+    except NotPickledObject as e:
+        raise MotionFileError(path, f"not a poselib SkeletonMotion (expected a pickled dict; found {e})") from None
+    except Exception as e:  # noqa: BLE001 - any reader failure (truncated, garbage) is a bad file
         raise MotionFileError(path, f"unreadable .npy file ({type(e).__name__}: {e})") from None
-    if not (isinstance(obj, np.ndarray) and obj.dtype == object and obj.shape == ()):
-        raise MotionFileError(path, "not a poselib SkeletonMotion (expected a pickled dict)")
-    d = obj.item()
     if not isinstance(d, dict):
-        raise MotionFileError(path, "not a poselib SkeletonMotion (expected a pickled dict)")
+        found = type(d).__name__
+        raise MotionFileError(path, f"not a poselib SkeletonMotion (expected a pickled dict; found a {found})")
+    return d
+
+
+def _node_names(path, tree: dict) -> list[str]:
+    names = _npy_field(path, tree, "node_names")
+    if not (isinstance(names, (list, tuple)) and all(isinstance(n, str) for n in names)):
+        raise MotionFileError(path, f"'node_names' must be a list of body names, not {plaus._short(names)}")
+    return list(names)
+
+
+def _read_poselib(path, character_hint: Character | None) -> _Raw:
+    """poselib ``SkeletonMotion`` saved with ``np.save`` (a pickled dict of numpy arrays), read
+    by the restricted unpickler of ``safe_pickle``: a file that names any other callable is refused."""
+    d = _read_npy_dict(path)
     if d.get("is_local", True) is not True:
-        raise MotionFileError(path, "global rotations (is_local=False) are not supported")
+        found = plaus._short(d.get("is_local"), 40)
+        raise MotionFileError(path, f"is_local is {found}: only local rotations (is_local=True) are supported")
     tree = _npy_field(path, d, "skeleton_tree")
     if not isinstance(tree, dict):
         raise MotionFileError(path, "'skeleton_tree' is not a dict")
-    names = list(_npy_field(path, tree, "node_names"))
-    parents = np.asarray(_npy_field(path, tree, "parent_indices")).astype(np.int64).tolist()
+    names = _node_names(path, tree)
+    parents = _as_array(path, _npy_field(path, tree, "parent_indices"), (), "parent_indices")
+    _check_finite(path, parents, "parent_indices")
+    parents = parents.astype(np.int64).tolist()
     offsets = _as_array(path, _npy_field(path, tree, "local_translation"), (3,), "local_translation")
     ss = len(names) == 17 if character_hint is None else character_hint.sword_shield
     ch = _character(ss)
     if tuple(names) != ch.body_names or tuple(parents) != ch.parents:
         raise MotionFileError(
             path,
-            f"wrong skeleton: the file has {len(names)} nodes {names} with parents "
-            f"{parents}, but the {'sword-shield ' if ss else ''}character has "
+            f"wrong skeleton: the file has {len(names)} nodes {plaus._short(names, 200)} with parents "
+            f"{plaus._short(parents, 100)}, but the {'sword-shield ' if ss else ''}character has "
             f"{ch.num_bodies} bodies {list(ch.body_names)} with parents {list(ch.parents)}",
         )
     N = len(names)
-    rotation = _as_array(
-        path, np.asarray(_npy_field(path, d, "rotation")).reshape(-1, N * 4), (N * 4,), "rotation"
-    ).reshape(-1, N, 4)
+    rotation = _as_array(path, _npy_field(path, d, "rotation"), (N, 4), "rotation")
     root_pos = _as_array(path, _npy_field(path, d, "root_translation"), (3,), "root_translation")
     _check_frames(path, rotation.shape[0])
     if root_pos.shape[0] != rotation.shape[0]:
@@ -311,6 +368,9 @@ def _read_poselib(path, character_hint: Character | None) -> _Raw:
     fps = _check_fps(path, d.get("fps"))
     _check_finite(path, root_pos, "root_translation")
     _check_finite(path, offsets, "local_translation")
+    problem = plaus.magnitude_problem(offsets[None], plaus.MAX_OFFSET, "skeleton offset", "m")
+    if problem:
+        raise MotionFileError(path, problem.removeprefix("frame 0: "))
     local = np.stack([_unit_quats(path, rotation[:, b], f"rotation[{n}]") for b, n in enumerate(names)], axis=1)
     return _Raw("poselib_npy", fps, False, ss, root_pos, _xyzw_to_wxyz(local), offsets)
 
@@ -319,10 +379,12 @@ def _read_json(path) -> dict:
     try:
         with open(path) as f:
             d = json.load(f)
-    except json.JSONDecodeError as e:
-        raise MotionFileError(path, f"malformed JSON: {e}") from None
     except (OSError, UnicodeDecodeError) as e:
         raise MotionFileError(path, f"unreadable file: {e}") from None
+    except json.JSONDecodeError as e:
+        raise MotionFileError(path, f"malformed JSON: {e}") from None
+    except (ValueError, RecursionError) as e:  # an int of 5000 digits, [[[[...]]]] nested 100000 deep
+        raise MotionFileError(path, f"malformed JSON: {type(e).__name__}: {e}") from None
     if not isinstance(d, dict):
         raise MotionFileError(path, "expected a JSON object with 'frames' or 'Frames'")
     return d
@@ -371,31 +433,42 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
     if not p.is_file():
         raise MotionFileError(p, "no such file")
     try:
-        suffix = p.suffix.lower()
-        if suffix == ".npy":
-            raw = _read_poselib(p, character)
-        elif suffix in (".json", ".txt"):
-            d = _read_json(p)
-            if "frames" in d:
-                raw = _read_compositemotion(p, d)
-            elif "Frames" in d:
-                raw = _read_deepmimic(p, d)
-            else:
-                raise MotionFileError(p, "unknown JSON motion layout (no 'frames' or 'Frames' key)")
-        else:
-            raise MotionFileError(p, f"unsupported file type {suffix!r} (expected one of {', '.join(MOTION_SUFFIXES)})")
-        if character is not None and character.sword_shield != raw.sword_shield:
-            n = 17 if raw.sword_shield else 15
-            raise MotionFileError(
-                p,
-                f"wrong skeleton: the file has the {n}-body skeleton, but a "
-                f"{character.num_bodies}-body character was requested",
-            )
+        raw = _read_raw(p, character)
         return _to_clip(p, raw, character or _character(raw.sword_shield))
     except MotionFileError:
         raise
     except Exception as e:  # noqa: BLE001 - never let a deep numpy error escape for bad input
         raise MotionFileError(p, f"could not read motion ({type(e).__name__}: {e})") from None
+
+
+def _read_raw(p: Path, character: Character | None) -> _Raw:
+    """Parses a file by suffix and layout, then checks it fits ``character`` and is a motion a
+    body can make (``plausibility.motion_problem``)."""
+    suffix = p.suffix.lower()
+    if suffix == ".npy":
+        raw = _read_poselib(p, character)
+    elif suffix in (".json", ".txt"):
+        d = _read_json(p)
+        if "frames" in d:
+            raw = _read_compositemotion(p, d)
+        elif "Frames" in d:
+            raw = _read_deepmimic(p, d)
+        else:
+            raise MotionFileError(p, "unknown JSON motion layout (no 'frames' or 'Frames' key)")
+    else:
+        raise MotionFileError(p, f"unsupported file type {suffix!r} (expected one of {', '.join(MOTION_SUFFIXES)})")
+    if character is not None and character.sword_shield != raw.sword_shield:
+        n = 17 if raw.sword_shield else 15
+        raise MotionFileError(
+            p,
+            f"wrong skeleton: the file has the {n}-body skeleton, but a "
+            f"{character.num_bodies}-body character was requested",
+        )
+    names = _character(raw.sword_shield).body_names
+    problem = plaus.motion_problem(raw.fps, raw.root_pos, raw.local_quat, names)
+    if problem:
+        raise MotionFileError(p, problem)
+    return raw
 
 
 def _is_motion_file(p: Path) -> bool:
@@ -442,19 +515,35 @@ def find_motion_files(paths: str | os.PathLike | Iterable[str | os.PathLike]) ->
     return out
 
 
-_FRAMES = re.compile(r"^(?P<path>.+)\[(?P<ranges>\s*\d*\s*:\s*\d*\s*(?:,\s*\d*\s*:\s*\d*\s*)*)\]$")
+def find_clip_specs(item: str | os.PathLike) -> list[tuple[Path, Ranges | None]]:
+    """One command-line or config entry -> its clip files, each with its frame ranges (a file
+    named ``path[start:stop,...]``, see ``frame_ranges``) or None (a plain file or a folder).
+
+    Raises:
+        MotionFileError: a path that does not exist, a folder without clips, bad range syntax.
+    """
+    if resolve(item).exists():  # a file whose own name ends in brackets
+        return [(p, None) for p in find_motion_files([item])]
+    try:
+        path, ranges = split_frame_ranges(item)
+    except ValueError as e:
+        raise MotionFileError(item, str(e)) from None
+    if ranges is None:
+        return [(p, None) for p in find_motion_files([item])]
+    if resolve(path).is_dir():
+        raise MotionFileError(resolve(path), f"frame ranges [{format_ranges(ranges)}] need one file, not a folder")
+    return [(resolve(path), ranges)]
 
 
-def split_frame_ranges(spec: str | os.PathLike) -> tuple[str | os.PathLike, tuple[tuple[int, int | None], ...] | None]:
-    """``"squat.json[0:33,58:]"`` -> ``("squat.json", ((0, 33), (58, None)))``; no brackets -> None."""
-    m = _FRAMES.match(str(spec))
-    if m is None:
-        return spec, None
-    ranges = []
-    for part in m["ranges"].split(","):
-        a, b = (x.strip() for x in part.split(":"))
-        ranges.append((int(a) if a else 0, int(b) if b else None))
-    return m["path"], tuple(ranges)
+def load_clip_frames(path: str | os.PathLike, ranges: Ranges | None, character: Character | None = None) -> Clip:
+    """``load_clip``, then only the frames of ``ranges`` (None = all) joined (``clip.select_frames``)."""
+    clip = load_clip(path, character)
+    if ranges is None:
+        return clip
+    try:
+        return select_frames(clip, ranges)
+    except ValueError as e:
+        raise MotionFileError(resolve(path), str(e)) from None
 
 
 def load_clips(
@@ -462,20 +551,10 @@ def load_clips(
 ) -> list[Clip]:
     """Loads files and folders (recursively, sorted) of motion files; see ``load_clip``.
 
-    A file may name frame ranges, ``path[start:stop,...]`` (frame indices, Python slices): only
-    those frames, joined into one clip (``clip.select_frames``), e.g. a squat without its bounce.
+    A file may name frame ranges, ``path[start:stop,...]`` (frame indices, Python slices, ends may
+    be negative: ``[-5:]``, ``[10:-3]``): only those frames, joined into one clip
+    (``clip.select_frames``), e.g. a squat without its bounce. Fewer than 2 frames is an error.
     """
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
-    out = []
-    for item in paths:
-        path, ranges = split_frame_ranges(item)
-        if ranges is None:
-            out += [load_clip(p, character) for p in find_motion_files([item])]
-            continue
-        clip = load_clip(path, character)
-        try:
-            out.append(select_frames(clip, ranges))
-        except ValueError as e:
-            raise MotionFileError(resolve(path), str(e)) from None
-    return out
+    return [load_clip_frames(p, ranges, character) for item in paths for p, ranges in find_clip_specs(item)]
