@@ -556,7 +556,18 @@ def test_cli_reports_bad_file_and_writes_json(tmp_path):
     assert [c["path"] for c in report["clips"]] == [str(folder / "good.json")]
     row = report["clips"][0]
     assert row["frames"] == 4 and row["root_speed_mps"] == pytest.approx(0.3)
-    assert set(row) == {"path", "format", "frames", "fps", "duration_s", "root_speed_mps", "fk_error_m"}
+    assert set(row) == {
+        "path",
+        "format",
+        "frames",
+        "fps",
+        "duration_s",
+        "root_speed_mps",
+        "fk_error_m",
+        "peak_joint_speed_rad_s",
+        "servo_reach_ratio",
+        "limiting_joint",
+    }
     assert len(report["errors"]) == 1 and "malformed JSON" in report["errors"][0]["error"]
 
 
