@@ -45,7 +45,7 @@ import os
 import resource
 import sys
 import time
-from typing import Any
+from typing import Annotated, Any, Literal
 from collections.abc import Callable
 
 import jax
@@ -55,6 +55,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxmotion.physics import sim
+from jaxmotion.config.checks import Count, Min, NonEmpty, NonNegative, validate
 from jaxmotion.config.errors import cli_errors
 
 ROOT_HEIGHT = 0.89
@@ -67,24 +68,24 @@ GPU_EXTRA_BATCHES = (4096, 16384)
 class BenchConfig:
     """What to measure and for how long."""
 
-    batches: tuple[int, ...] = DEFAULT_BATCHES
-    steps: int = 8
+    batches: Annotated[tuple[int, ...], Min(1), NonEmpty()] = DEFAULT_BATCHES
+    steps: Count = 8
     """Control steps per physics call (the length of the jitted scan)."""
-    seconds: float = 3.0
+    seconds: NonNegative = 3.0
     """Minimum measuring time per number (calls repeat until it has passed)."""
-    rounds: int = 3
+    rounds: Count = 3
     """The parts at one batch size are timed in this many alternating rounds."""
-    noise: float = 0.02
+    noise: NonNegative = 0.02
     """Standard deviation (rad) of the random joint-angle offsets of the initial states."""
     seed: int = 0
-    exp: str = "composite/chest_open+squat"
+    exp: Annotated[str, NonEmpty()] = "composite/chest_open+squat"
     """Experiment whose config the rollout and train parts use (num_envs = batch)."""
-    iters: int = 1
+    iters: Annotated[int, Min(0)] = 1
     """Train: iterations per compiled chunk; 0 keeps the experiment's ``chunk``."""
     overrides: tuple[str, ...] = ()
     """``key=value`` overrides of the experiment's config, as ``make train ARGS=...`` takes."""
     physics: sim.PhysicsConfig = sim.PhysicsConfig()
-    backends: tuple[str, ...] = ("mjx", "mujoco")
+    backends: Annotated[tuple[Literal["mjx", "mujoco"], ...], NonEmpty()] = ("mjx", "mujoco")
     """Physics backends of the rollout and train rows (each row says its ``backend``)."""
 
 
@@ -293,7 +294,7 @@ def _learner(cfg: BenchConfig, batch: int, backend: str = "auto"):
         disc=dataclasses.replace(tc.disc, minibatch_size=fit(tc.disc.minibatch_size)),
     )
     if cfg.iters:
-        tc = dataclasses.replace(tc, chunk=cfg.iters)
+        tc = dataclasses.replace(tc, chunk=cfg.iters, iterations=cfg.iters)  # a run of one chunk
     return Learner(tc), tc
 
 
@@ -568,22 +569,21 @@ def main(argv: list[str] | None = None) -> int:
         batches = (1, 4)
     else:
         batches = DEFAULT_BATCHES + (GPU_EXTRA_BATCHES if jax.default_backend() == "gpu" else ())
-    if not batches or min(batches) < 1:
-        p.error("--batches must be positive integers")
-    # A benchmark without compilation measures nothing useful (and un-jitted MJX takes seconds
-    # per step), so JAX_DISABLE_JIT=1, which the test suite sets, is overridden here.
-    jax.config.update("jax_disable_jit", False)
     cfg = BenchConfig(
         batches=batches,
-        steps=a.steps or (2 if a.quick else 8),
+        steps=(2 if a.quick else 8) if a.steps is None else a.steps,
         seconds=a.seconds if a.seconds is not None else (0.0 if a.quick else 3.0),
         exp=a.exp or ("smoke" if a.quick else "composite/chest_open+squat"),
         iters=a.iters,
         seed=a.seed,
-        rounds=a.rounds or (1 if a.quick else 3),
+        rounds=(1 if a.quick else 3) if a.rounds is None else a.rounds,
         overrides=tuple(a.set),
         backends=tuple(b.strip() for b in a.backends.split(",") if b.strip()),
     )
+    validate(cfg)  # every number in its range, known backends: one line before anything compiles
+    # A benchmark without compilation measures nothing useful (and un-jitted MJX takes seconds
+    # per step), so JAX_DISABLE_JIT=1, which the test suite sets, is overridden here.
+    jax.config.update("jax_disable_jit", False)
     if {"rollout", "train"} & set(parts):
         check_clips(cfg)  # a missing clip is one clear line before anything compiles
     result = run(cfg, parts, a.timeout)

@@ -9,12 +9,14 @@ success and MPJPE, two-player runs bout results. Each evaluator owns its flags.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
 import jax
 
-from jaxmotion.config.errors import cli_errors
+from jaxmotion.config.checks import Min, show
+from jaxmotion.config.errors import ConfigError, cli_errors
 from jaxmotion.evaluation import EVALUATORS, evaluator_of
 from jaxmotion.training.runs import load_run
 
@@ -48,12 +50,49 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+NUMBERS = {"episodes": Min(1), "steps": Min(1), "bouts": Min(1), "switch_every": Min(0, open=True), "noise": Min(0)}
+"""The numeric flags (the evaluators' included) and their ranges, checked before the run loads."""
+OUTPUTS = ("json", "video", "html")
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Refuses, before the run is loaded or rolled out, a number out of its range and an output
+    that cannot be written (its folder is made here; an output may go into a new folder)."""
+    for name, mark in NUMBERS.items():
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        problem = "must be a finite number" if not math.isfinite(value) else mark.problem(value)
+        if problem:
+            raise ConfigError(f"--{name.replace('_', '-')}={show(value)}: {problem}")
+    for name in OUTPUTS:
+        if getattr(args, name) is not None:
+            check_output(f"--{name}", getattr(args, name))
+
+
+def check_output(flag: str, path: Path) -> None:
+    """``path`` can be written: not a folder, its folder made, a file opened there for writing
+    (and removed again if it was not there)."""
+    if path.is_dir():
+        raise ConfigError(f"{flag}={path}: is a folder, not a file")
+    above = next((p for p in path.parents if p.exists()), None)
+    if above is not None and not above.is_dir():
+        raise ConfigError(f"{flag}={path}: {above} is a file, not a folder")
+    existed = path.exists()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "a"):
+            pass
+    except OSError as e:
+        raise ConfigError(f"{flag}={path}: cannot be written ({e.strerror or e})") from None
+    if not existed:
+        path.unlink()
+
+
 @cli_errors
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
-    for out in (args.json, args.video, args.html):
-        if out is not None:
-            out.parent.mkdir(parents=True, exist_ok=True)
+    check_args(args)
     try:
         experiment, cfg, learner, ts = load_run(args.run)
     except FileNotFoundError as e:

@@ -146,6 +146,15 @@ def test_literal_and_path():
         config.apply_overrides(Experiment(), ["net.activation=gelu"])
 
 
+def test_unknown_choice_lists_the_choices_and_suggests():
+    with pytest.raises(ConfigError) as err:
+        config.apply_overrides(Experiment(), ["net.activation=rellu"])
+    msg = str(err.value)
+    assert msg == "net.activation=rellu: must be one of 'relu', 'relu6', 'tanh' (did you mean 'relu'?)"
+    with pytest.raises(ConfigError, match="net.activation=swish: must be one of 'relu', 'relu6', 'tanh'$"):
+        config.from_dict(Experiment, {"net": {"activation": "swish"}})
+
+
 def test_typo_lists_valid_keys_and_suggests():
     with pytest.raises(ConfigError) as err:
         config.apply_overrides(Experiment(), ["ppo.learnig_rate=1e-3"])

@@ -50,6 +50,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxmotion.config.errors import ConfigError
+
 Params = Any
 GP_MODES = ("per_head", "sum_heads")
 LOSSES = ("hinge", "lsgan", "bce")
@@ -60,10 +62,11 @@ MIN_REWARD = {"hinge": -1.0, "lsgan": 0.0, "bce": 0.0}
 
 
 def check_loss(loss: str) -> None:
-    """Raises ``ValueError`` naming the valid losses unless ``loss`` is one of ``LOSSES``."""
+    """Raises a ``ConfigError`` (a ``ValueError``) naming the valid losses unless ``loss`` is one of
+    ``LOSSES``."""
     if loss not in LOSSES:
         names = ", ".join(map(repr, LOSSES))
-        raise ValueError(f"discriminator loss must be one of {names}, got {loss!r}")
+        raise ConfigError(f"disc.loss={loss}: must be one of {names}, not {loss!r}")
 
 
 def hinge_loss(policy_logits: jax.Array, ref_logits: jax.Array) -> jax.Array:

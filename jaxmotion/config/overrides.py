@@ -36,6 +36,7 @@ import typing
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from jaxmotion.config.checks import show, validate
 from jaxmotion.config.errors import ConfigError
 
 _NONE_WORDS = ("none", "null")
@@ -243,7 +244,9 @@ def _coerce_literal(value: Any, choices: tuple[Any, ...], cli: bool) -> Any:
             return choice
         if cli and isinstance(value, str) and _unquote(value.strip()) == str(choice):
             return choice
-    raise _ParseError("not one of the allowed values")
+    listed = ", ".join(repr(c) for c in choices)
+    close = difflib.get_close_matches(_unquote(str(value).strip()), [str(c) for c in choices], n=1)
+    raise _ParseError(f"must be one of {listed}" + (f" (did you mean {close[0]!r}?)" if close else ""))
 
 
 def _coerce_generic(value: Any, origin: Any, args: tuple[Any, ...], cli: bool) -> Any:
@@ -394,7 +397,11 @@ def _unknown_key_error(
 
 
 def _bad_value_error(key: str, value: Any, tp: Any, reason: str) -> ConfigError:
-    return ConfigError(f"bad value for {key!r}: {value!r} is not a valid {_type_name(tp)} ({reason})")
+    """``key=value: what is wrong`` (a choice among a Literal's: the choices and the closest)."""
+    text = value if isinstance(value, str) else show(value)
+    if typing.get_origin(_strip_optional(tp)) is typing.Literal:
+        return ConfigError(f"{key}={text}: {reason}")
+    return ConfigError(f"{key}={text}: {value!r} is not a valid {_type_name(tp)} ({reason})")
 
 
 # --------------------------------------------------------------------------- to_dict / from_dict
@@ -439,11 +446,12 @@ def from_dict(cls: type, d: Mapping[str, Any]) -> Any:
 
     Raises:
         ConfigError: an unknown key (the message lists the valid ones), a missing required
-            field, or a value that does not fit its field's type.
+            field, a value that does not fit its field's type, or one outside its declared
+            range or rules (``checks.validate``).
     """
     if not _is_dataclass_type(cls):
         raise ConfigError(f"{cls!r} is not a dataclass type")
-    return _from_mapping(cls, d, "", cli=False)
+    return validate(_from_mapping(cls, d, "", cli=False))
 
 
 def _from_mapping(cls: type, d: Mapping[str, Any], prefix: str, cli: bool) -> Any:
@@ -485,7 +493,8 @@ def apply_overrides(cfg: Any, overrides: Sequence[str]) -> Any:
 
     Raises:
         ConfigError: a malformed override, an unknown key (the message lists the valid keys at
-            that level and the closest match), or a value that does not parse as its type.
+            that level and the closest match), a value that does not parse as its type, or a
+            result outside the declared ranges and rules (``checks.validate``, run once at the end).
     """
     if isinstance(overrides, str):
         raise ConfigError("overrides must be a list of 'key=value' strings, not one string")
@@ -495,7 +504,7 @@ def apply_overrides(cfg: Any, overrides: Sequence[str]) -> Any:
         if not sep or not key:
             raise ConfigError(f"override {item!r} is not of the form key=value")
         cfg = _set_path(cfg, key.split("."), raw, "")
-    return cfg
+    return validate(cfg)
 
 
 def _set_path(node: Any, path: list[str], raw: str, prefix: str) -> Any:

@@ -30,6 +30,8 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from jaxmotion.config.checks import validate
+from jaxmotion.config.errors import ConfigError
 from jaxmotion.motion import observations as O
 from jaxmotion.envs.humanoid import StepOut, joint_arrays, lowest_point, safe_action
 from jaxmotion.motion import rotations as R
@@ -60,16 +62,9 @@ class BoutEnv:
     players = PLAYERS
 
     def __init__(self, cfg, init_lib=None, physics=None):
-        self.cfg = cfg
+        self.cfg = validate(cfg, "env")  # EnvConfig.checks: groups, init clips, arena, two-player task
         ac = cfg.arena
         sport = A.SPORTS[ac.sport]
-        if cfg.physics.sword_shield != sport.sword_shield:
-            cfg_ss = "true" if sport.sword_shield else "false"
-            raise ValueError(f"the {ac.sport} arena needs env.physics.sword_shield={cfg_ss}")
-        if cfg.groups:
-            raise ValueError("two-player scenes have no imitation discriminators yet: set env.groups=()")
-        if not cfg.init_motions:
-            raise ValueError("a two-player scene needs env.init_motions: the clips its players start from")
         self.character = ch = character(sport.sword_shield)
         self.layout = A.layout(ac)
         pc = cfg.physics
@@ -106,7 +101,7 @@ class BoutEnv:
             )
         self.task = make_task(cfg.task, self)
         if not getattr(self.task, "two_player", False):
-            raise ValueError(f"task {cfg.task.name!r} is not a two-player task (boxing, fencing)")
+            raise ConfigError(f"env.task.name={cfg.task.name}: is not a two-player task (boxing, fencing)")
 
     # ---- sizes -------------------------------------------------------------------------
     @property
@@ -254,4 +249,4 @@ def make_env(cfg, **kw):
         return HumanoidEnv(cfg, **kw)
     if cfg.players == PLAYERS:
         return BoutEnv(cfg, **kw)
-    raise ValueError(f"env.players must be 1 or 2, got {cfg.players}")
+    raise ConfigError(f"env.players={cfg.players}: must be 1 or 2")

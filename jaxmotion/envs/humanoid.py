@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any
+from typing import Annotated, Any, Literal
 from collections.abc import Sequence
 
 import jax
@@ -29,6 +29,8 @@ import numpy as np
 from flax import struct
 from mujoco import mjx
 
+from jaxmotion.config.checks import AllowInf, Min, NonEmpty, Ordered, Problem, validate
+from jaxmotion.config.errors import ConfigError
 from jaxmotion.motion import observations as O
 from jaxmotion.motion.groups import default_groups, group_indices, resolve_group
 from jaxmotion.motion.motionlib import (
@@ -42,31 +44,31 @@ from jaxmotion.motion.motionlib import (
     sample_windows,
 )
 from jaxmotion.physics import sim
-from jaxmotion.physics.arena import ArenaConfig
+from jaxmotion.physics.arena import SPORTS, ArenaConfig
 from jaxmotion.physics.fk import LinkFK
 from jaxmotion.physics.props import Props
 from jaxmotion.physics.character import character
-from jaxmotion.tasks import TaskConfig, make_task
+from jaxmotion.tasks import TASKS, TaskConfig, make_task
 
 
 @dataclasses.dataclass(frozen=True)
 class GroupConfig:
     """A body group with its own discriminator and reference clips."""
 
-    name: str = "full"
+    name: Annotated[str, NonEmpty()] = "full"
     """A default group (upper, lower, arms, rest, full) or a new name with ``links`` given."""
     motions: tuple[str, ...] = ()
     """Reference clips (files or folders, relative to the data directory) for this group."""
     links: tuple[str, ...] = ()
     """Link names; empty means the default group of that name."""
-    anchor: str = "default"
+    anchor: Annotated[str, NonEmpty()] = "default"
     """Link the observation is expressed against; 'heading' for the heading frame; 'default'
     for the default group's anchor."""
-    frames: int = 5
+    frames: Annotated[int, Min(2)] = 5
     """Window length n+2 frames: t-n ... t+1."""
-    speed_range: tuple[float, float] = (1.0, 1.0)
+    speed_range: Annotated[tuple[float, float], Min(0, open=True), Ordered()] = (1.0, 1.0)
     """Random replay-speed range of the reference windows (the paper uses (0.8, 1.2) for some)."""
-    weight: float | None = None
+    weight: Annotated[float, Min(0)] | None = None
     """ω of this group's objective; None shares what the given weights leave (``tasks.combine_weights``)."""
 
 
@@ -78,21 +80,21 @@ class EnvConfig:
     init_motions: tuple[str, ...] = ()
     """Clips for reference-state initialisation; empty means the first group's clips."""
     groups: tuple[GroupConfig, ...] = (GroupConfig(),)
-    episode_steps: int = 300
+    episode_steps: Annotated[int, Min(1)] = 300
     """Episode time limit in control steps (300 = 10 s at 30 Hz)."""
-    policy_frames: int = 4
+    policy_frames: Annotated[int, Min(1)] = 4
     """Frames of link state in the policy observation (current plus history). The paper asks
     for at least the discriminators' history (t-3 ... t); the authors' code uses 4."""
     early_termination: bool = True
     """End the episode when a body other than the feet touches the ground."""
-    fall_height: float = 0.0
+    fall_height: Annotated[float, Min(0)] = 0.0
     """0: a ground contact of any body but the feet is a fall. > 0: only while that body's
     origin is below this height (the authors' code: 0.15 m, with contact force > 1 N), so a hand
     or a knee may touch the ground while its link stays up."""
-    contact_grace_steps: int = 2
+    contact_grace_steps: Annotated[int, Min(0)] = 2
     """Steps after reset in which ground contact does not end the episode."""
     allowed_contacts: tuple[str, ...] = ("right_foot", "left_foot")
-    action_scale: float = 2.0
+    action_scale: Annotated[float, Min(0, open=True)] = 2.0
     """PD target = mid-range + action_scale * action * half-range. 2.0 is the authors' code
     (mid + action * full range: ±0.5 reaches the limits); 1.0 reaches them at ±1."""
     init_above_ground: bool = True
@@ -108,21 +110,76 @@ class EnvConfig:
     """Clips (file stems or path endings) whose reference is levelled where both feet are
     planted: the body tilted a few degrees about the root so that both soles rest on the floor
     (``motion/level.py``). For clips retargeted onto uneven feet, like the shared squat."""
-    max_qvel: float = 100.0
-    """|qvel| above this counts as unstable physics: the environment is reset."""
+    max_qvel: Annotated[float, Min(0, open=True), AllowInf()] = 100.0
+    """|qvel| above this counts as unstable physics: the environment is reset (inf: never)."""
     task: TaskConfig = TaskConfig()
     """The task the character performs besides imitating (``tasks/``); 'imitate' for none."""
-    init_sampling: str = "duration"
+    init_sampling: Literal["duration", "uniform"] = "duration"
     """How a reset picks its clip from ``init_motions``: 'duration' (in proportion to each clip's
     length, so every moment of the data is equally likely) or 'uniform' (each clip alike, as
     the PHC authors' motion library, so short clips are not starved)."""
     drop_props: bool = False
     """Load sword-and-shield clips (17 bodies) onto the 15-body humanoid by dropping the sword,
     the shield and the right wrist (``motion.clip.drop_sword_shield``)."""
-    players: int = 1
+    players: Literal[1, 2] = 1
     """1: one character (``HumanoidEnv``); 2: two players in the arena (``envs/bout.py``)."""
     arena: ArenaConfig = ArenaConfig()
     """The two-player scene (ring or piste; ``physics/arena.py``); unused with one player."""
+
+    def checks(self) -> list[Problem]:
+        """The rules between the scene's settings (``config.checks``): its players, groups, task,
+        arena and props."""
+        task = TASKS[self.task.name]
+        out = self._one_player(task) if self.players == 1 else self._two_players(task)
+        defaults = default_groups(character(self.physics.sword_shield))
+        for i, g in enumerate(self.groups):
+            if not g.links and g.name not in defaults:
+                out.append(
+                    Problem(f"groups[{i}].name", f"is not a default group ({', '.join(defaults)}) and gives no links")
+                )
+        return out + self._task_props()
+
+    def _one_player(self, task) -> list[Problem]:
+        out = [Problem("groups", "must not be empty: a one-player scene needs a body group")] if not self.groups else []
+        if getattr(task, "two_player", False):
+            out.append(Problem("task.name", "is a two-player task: it needs env.players=2"))
+        return out
+
+    def _two_players(self, task) -> list[Problem]:
+        out, sport = [], self.arena.sport
+        if self.groups:
+            out.append(Problem("groups", "must be empty: two-player scenes have no imitation discriminators yet"))
+        if not self.init_motions:
+            out.append(
+                Problem("init_motions", "must not be empty: a two-player scene needs the clips its players start from")
+            )
+        if self.physics.sword_shield != SPORTS[sport].sword_shield:
+            want = str(SPORTS[sport].sword_shield).lower()
+            out.append(Problem("physics.sword_shield", f"the {sport} arena needs env.physics.sword_shield={want}"))
+        if not getattr(task, "two_player", False):
+            out.append(Problem("task.name", "is not a two-player task (boxing, fencing)"))
+        elif task.sport != sport:
+            out.append(Problem("arena.sport", f"task {self.task.name!r} needs env.arena.sport={task.sport}"))
+        return out
+
+    def _task_props(self) -> list[Problem]:
+        """The props and rates the ball tasks need (``tasks/tennis.py``, ``tasks/juggle.py``)."""
+        pc, name = self.physics, self.task.name
+        if name == "tennis" and not (pc.racket and len(pc.props) == 1):
+            return [
+                Problem(
+                    "task.name",
+                    "the tennis task needs a racket and one ball in the scene: "
+                    "env.physics.sword_shield=true, racket=true, props=(PropConfig(),)",
+                )
+            ]
+        if name == "tennis" and pc.sim_hz < 240:
+            return [
+                Problem("physics.sim_hz", "the tennis ball passes through the racket below 240 Hz (physics/props.py)")
+            ]
+        if name == "juggle+location" and len(pc.props) not in (0, 3):
+            return [Problem("physics.props", "juggling needs three balls in the scene or none")]
+        return []
 
 
 @struct.dataclass
@@ -172,13 +229,11 @@ class HumanoidEnv:
         physics=None,
     ):
         """``physics`` replaces the backend that ``cfg.physics`` names (e.g. one with other gains)."""
-        self.cfg = cfg
+        self.cfg = validate(cfg, "env")
         self.character = character(cfg.physics.sword_shield)
         self.model = sim.mjx_model(cfg.physics)
         self.physics = sim.physics(cfg.physics) if physics is None else physics
         ch = self.character
-        if not cfg.groups:
-            raise ValueError("EnvConfig.groups is empty: at least one body group is needed")
         self.groups = []
         defaults = default_groups(ch)
         for g in cfg.groups:
@@ -186,8 +241,10 @@ class HumanoidEnv:
                 links = g.links
             elif g.name in defaults:
                 links = defaults[g.name].links
-            else:
-                raise ValueError(f"group {g.name!r} is not a default group ({sorted(defaults)}) and gives no links")
+            else:  # EnvConfig.checks found this already
+                raise ConfigError(
+                    f"env.groups: {g.name!r} is not a default group ({sorted(defaults)}) and gives no links"
+                )
             if g.anchor == "default":
                 anchor = defaults[g.name].anchor if g.name in defaults else None
             else:
@@ -209,7 +266,7 @@ class HumanoidEnv:
         names = {n for lib in (*self.motion_libs, init_lib) for n in (*lib.clip_names, *lib.clip_paths)}
         unknown = [p for p in cfg.level_feet if not any(n == p or n.endswith(p) for n in names)]
         if unknown:
-            raise ValueError(f"EnvConfig.level_feet names clips that are not loaded: {unknown}")
+            raise ConfigError(f"env.level_feet={','.join(unknown)}: names clips that are not loaded")
         self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
         self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
         self._data0 = mjx.make_data(self.model)

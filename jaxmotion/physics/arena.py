@@ -35,10 +35,13 @@ import copy
 import dataclasses
 import functools
 import xml.etree.ElementTree as ET
+from typing import Annotated, Literal
 
 import mujoco
 import numpy as np
 
+from jaxmotion.config.checks import Min, Ordered
+from jaxmotion.config.errors import ConfigError
 from jaxmotion.physics.character import build_mjcf, character
 
 PREFIXES = ("p0_", "p1_")
@@ -50,21 +53,21 @@ ROPE_RGBA = "0.9 0.9 0.85 1"
 class ArenaConfig:
     """Geometry of the two-player scene."""
 
-    sport: str = "boxing"
+    sport: Literal["boxing", "fencing"] = "boxing"
     """'boxing' (15-body humanoids with gloves, a roped ring) or 'fencing' (sword-and-shield
-    characters, no ropes)."""
-    ring_size: float = 5.0
+    characters, no ropes): the names of ``SPORTS``."""
+    ring_size: Annotated[float, Min(0)] = 5.0
     """Boxing: side of the square inside the ropes (m); 0: no ropes."""
-    rope_thickness: float = 0.2
-    rope_height: tuple[float, float] = (0.25, 1.25)
-    glove_radius: float = 0.06
-    glove_mass: float = 0.5
-    pair_condim: int = 3
-    """condim of the player-player pairs (3: friction cone; 1: frictionless)."""
+    rope_thickness: Annotated[float, Min(0, open=True)] = 0.2
+    rope_height: Annotated[tuple[float, float], Min(0), Ordered(strict=True)] = (0.25, 1.25)
+    glove_radius: Annotated[float, Min(0, open=True)] = 0.06
+    glove_mass: Annotated[float, Min(0, open=True)] = 0.5
+    pair_condim: Literal[1, 3, 4, 6] = 3
+    """condim of the player-player pairs (3: friction cone; 1: frictionless; MuJoCo's 1, 3, 4 or 6)."""
 
     def __post_init__(self):
-        if self.sport not in SPORTS:
-            raise ValueError(f"arena sport {self.sport!r} is not one of {sorted(SPORTS)}")
+        if self.sport not in SPORTS:  # made in Python (overrides: the Literal)
+            raise ConfigError(f"arena sport {self.sport!r} is not one of {sorted(SPORTS)}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -33,12 +33,14 @@ from __future__ import annotations
 
 import dataclasses
 import xml.etree.ElementTree as ET
+from typing import Annotated
 
 import jax
 import mujoco
 import numpy as np
 from flax import struct
 
+from jaxmotion.config.checks import Min, NonEmpty, Range
 from jaxmotion.physics.character import PROP_BIT, build_mjcf
 
 
@@ -46,14 +48,14 @@ from jaxmotion.physics.character import PROP_BIT, build_mjcf
 class PropConfig:
     """A free sphere in the scene (defaults: a tennis ball)."""
 
-    name: str = "ball"
-    radius: float = 0.033
-    mass: float = 0.057
-    restitution: float = 0.75
+    name: Annotated[str, NonEmpty()] = "ball"
+    radius: Annotated[float, Min(0, open=True)] = 0.033
+    mass: Annotated[float, Min(0, open=True)] = 0.057
+    restitution: Annotated[float, Range(0, 1)] = 0.75
     """Bounce of its contacts: the ratio of outgoing to incoming normal speed MuJoCo's soft
     contact aims at (solref's negative damping form, ``_solref``); a tennis ball off a racket or
     a hard court is about 0.75."""
-    rgba: tuple[float, float, float, float] = (0.85, 0.95, 0.2, 1.0)
+    rgba: Annotated[tuple[float, float, float, float], Range(0, 1)] = (0.85, 0.95, 0.2, 1.0)
 
 
 @struct.dataclass

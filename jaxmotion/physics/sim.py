@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from typing import Annotated, Literal
 
 import jax
 import jax.numpy as jnp
 import mujoco
 from mujoco import mjx
 
+from jaxmotion.config.checks import Min, Problem
+from jaxmotion.config.errors import ConfigError
 from jaxmotion.physics import backends
 from jaxmotion.physics.character import Character
 from jaxmotion.physics.props import PropConfig, prop_channels, scene_mjcf
@@ -30,17 +33,17 @@ from jaxmotion.physics.props import PropConfig, prop_channels, scene_mjcf
 class PhysicsConfig:
     """How the character is simulated."""
 
-    sim_hz: float = 120.0
+    sim_hz: Annotated[float, Min(0, open=True)] = 120.0
     """Physics rate; one MJX step is ``1/sim_hz`` s."""
-    control_hz: float = 30.0
-    """Policy rate; each control step runs ``sim_hz / control_hz`` physics substeps."""
-    solver_iterations: int = 16
+    control_hz: Annotated[float, Min(0, open=True)] = 30.0
+    """Policy rate; each control step runs ``sim_hz / control_hz`` physics substeps (a whole number)."""
+    solver_iterations: Annotated[int, Min(1)] = 16
     """Cap on the contact solver's (Newton) iterations per physics step; it stops earlier once
     converged. At 4 (MJX's speed setting) the unconverged foot contacts threw the ankles past
     100 rad/s in 0.17% of control steps of a squatting policy (reset as unstable physics, i.e.
     a fall in training and in evaluation); re-simulated with 50 iterations or dt/8 those steps
     peak at 7-34 rad/s. At 8 or more: none in 38k steps, for ~20% of the env-step throughput."""
-    ls_iterations: int = 16
+    ls_iterations: Annotated[int, Min(1)] = 16
     sword_shield: bool = False
     """Use the 17-body sword-and-shield character (31 DoF) instead of the 15-body humanoid."""
     racket: bool = False
@@ -49,15 +52,15 @@ class PhysicsConfig:
     props: tuple[PropConfig, ...] = ()
     """Free bodies (balls) in the scene after the character, moved by the task
     (``physics/props.py``)."""
-    impl: str = "auto"
+    impl: Literal["auto", "jax", "warp"] = "auto"
     """MJX implementation: 'jax', 'warp' (NVIDIA GPUs only) or 'auto' (warp where available)."""
-    backend: str = "auto"
+    backend: Literal["auto", "mjx", "mujoco"] = "auto"
     """Physics engine: 'mjx', 'mujoco' (MuJoCo C through a host callback inside the compiled
     loop, threaded over the batch) or 'auto' (MuJoCo C on a CPU, MJX on an accelerator); see
     ``physics/backends.py``."""
-    threads: int = 0
+    threads: Annotated[int, Min(0)] = 0
     """Threads of the MuJoCo C backend's pool (0: one per CPU core)."""
-    servo_damping: str = "actuator"
+    servo_damping: Literal["actuator", "joint"] = "actuator"
     """Where the PD servo's damping ``-kd*qdot`` lives. 'actuator' (every run before 2026-12-05):
     in the actuator's affine bias, clipped together with ``kp*(target - q)`` at the torque limit.
     MuJoCo C then leaves a clipped actuator out of the implicit integration (its force no longer
@@ -68,15 +71,30 @@ class PhysicsConfig:
     engines then agree (``tests/test_backends.py``)."""
 
     def __post_init__(self):
-        if self.servo_damping not in ("actuator", "joint"):
-            raise ValueError(f"servo_damping must be 'actuator' or 'joint', got {self.servo_damping!r}")
+        if self.servo_damping not in ("actuator", "joint"):  # made in Python (overrides: the Literal)
+            raise ConfigError(f"servo_damping must be 'actuator' or 'joint', got {self.servo_damping!r}")
+
+    def checks(self) -> list[Problem]:
+        """The rules between the physics settings (``config.checks``)."""
+        out = []
+        if not self._whole_substeps():
+            out.append(Problem("sim_hz", f"must be a multiple of control_hz ({self.control_hz:g})"))
+        if self.racket and not self.sword_shield:
+            out.append(Problem("racket", "needs the sword-and-shield character (its 3-DoF wrist): sword_shield=true"))
+        names = [p.name for p in self.props]
+        if len(set(names)) < len(names):
+            out.append(Problem("props", "must have different names"))
+        return out
+
+    def _whole_substeps(self) -> bool:
+        n = self.sim_hz / self.control_hz
+        return abs(n - round(n)) <= 1e-6 and n >= 1
 
     @property
     def substeps(self) -> int:
-        n = self.sim_hz / self.control_hz
-        if abs(n - round(n)) > 1e-6 or n < 1:
-            raise ValueError(f"sim_hz ({self.sim_hz}) must be a multiple of control_hz ({self.control_hz})")
-        return int(round(n))
+        if not self._whole_substeps():
+            raise ConfigError(f"sim_hz ({self.sim_hz}) must be a multiple of control_hz ({self.control_hz})")
+        return int(round(self.sim_hz / self.control_hz))
 
     @property
     def control_dt(self) -> float:

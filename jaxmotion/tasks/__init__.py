@@ -7,7 +7,9 @@ setting of every registered task, so ``env.task.<setting>.<key>=value`` override
 """
 
 import dataclasses
+from typing import Literal
 
+from jaxmotion.config.errors import ConfigError
 from jaxmotion.tasks.base import Task, TaskStep, combine_weights
 from jaxmotion.tasks.bout import Boxing, BoxingConfig, Fencing, FencingConfig
 from jaxmotion.tasks.juggle import JuggleConfig, JuggleLocation
@@ -36,7 +38,7 @@ def _task_config(tasks: dict[str, type[Task]]) -> type:
                 raise TypeError(f"tasks declare two settings classes for TaskConfig.{field}")
     cls = dataclasses.make_dataclass(
         "TaskConfig",
-        [("name", str, dataclasses.field(default="imitate"))]
+        [("name", Literal[tuple(tasks)], dataclasses.field(default="imitate"))]
         + [(f, s, dataclasses.field(default=s())) for f, s in fields.items()],
         frozen=True,
         namespace={
@@ -56,7 +58,7 @@ def make_task(cfg: TaskConfig, env) -> Task:
     try:
         cls = TASKS[cfg.name]
     except KeyError:
-        raise ValueError(f"unknown task {cfg.name!r}; registered tasks: {sorted(TASKS)}") from None
+        raise ConfigError(f"env.task.name={cfg.name}: unknown task; registered tasks: {sorted(TASKS)}") from None
     return cls(cfg, env)
 
 

@@ -23,12 +23,13 @@ opponent's scorer points. Sizes: boxing 4 + 6 nb + 6 S (T + S) + 6 T S = 190 for
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
+from typing import Annotated, ClassVar
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmotion.config.checks import Min, NonNegative, Ordered, Positive
 from jaxmotion.motion.observations import LinkFrames, heading_frame
 from jaxmotion.motion import rotations as R
 from jaxmotion.physics.arena import SPORTS
@@ -40,24 +41,24 @@ class BoxingConfig:
     """Boxing rules and rewards (Won et al. 2021, Eqs. 1-5; the authors' variants as switches,
     notes won2021.md §0 and §3). Defaults: the paper."""
 
-    damage_clip: float = 200.0
+    damage_clip: Positive = 200.0
     """Each side's scoring contact force is clipped here (N) before the difference is taken."""
-    touch_threshold: float = 1.0
+    touch_threshold: NonNegative = 1.0
     """Scoring forces below this (N) count as no touch."""
-    close_k: float = 3.0
+    close_k: NonNegative = 3.0
     close_squared: bool = True
     """r_close = exp(-k d^2) (the paper) or exp(-k d) (the code); d: the nearest glove-target distance."""
-    facing_k: float = 5.0
-    energy_deadzone: float = 100.0
+    facing_k: NonNegative = 5.0
+    energy_deadzone: NonNegative = 100.0
     """r_energy = -gate(l) * max(0, |dq_t - dq_{t-1}|^2 - deadzone), joint velocities per control
     step (the code's form of the paper's angular accelerations); gate(l) = 1 - exp(-50 max(0, l - 1)^2)."""
-    stuck_distance: float = 0.4
-    stuck_seconds: float = 5.0
-    rope_margin: float = 0.15
+    stuck_distance: NonNegative = 0.4
+    stuck_seconds: Positive = 5.0
+    rope_margin: NonNegative = 0.15
     """'Near the ropes': the root within this of the ring's inner edge (m)."""
-    rope_seconds: float = 5.0
-    start_distance: tuple[float, float] = (0.7, 3.0)
-    weights: tuple[float, float, float, float, float] = (1.0, 0.2, 0.05, 0.001, 30.0)
+    rope_seconds: Positive = 5.0
+    start_distance: Annotated[tuple[float, float], Min(0), Ordered()] = (0.7, 3.0)
+    weights: Annotated[tuple[float, float, float, float, float], Min(0)] = (1.0, 0.2, 0.05, 0.001, 30.0)
     """ω of (match, close, facing, energy, penalty): the paper's Table 1."""
 
 
@@ -65,17 +66,17 @@ class BoxingConfig:
 class FencingConfig:
     """Fencing rules and rewards (Won et al. 2021, Eq. 7; notes won2021.md §3). Defaults: the paper."""
 
-    touch_threshold: float = 1.0
+    touch_threshold: NonNegative = 1.0
     """A touch: blade contact on a target with at least this normal force (N)."""
-    counter_seconds: float = 1.0
+    counter_seconds: NonNegative = 1.0
     """A counter-touch within this long after the first touch makes the bout a draw."""
-    piste: tuple[float, float] = (12.0, 2.0)
+    piste: Annotated[tuple[float, float], Min(0, open=True)] = (12.0, 2.0)
     """Length and width of the piste (m): leaving it is a penalty that ends the bout."""
-    win_reward: float = 1.0
+    win_reward: NonNegative = 1.0
     """r_match paid once at the result: +win to the winner, -win to the loser, 0 for a draw (the code: 10)."""
-    close_k: float = 3.0
-    start_distance: float = 4.0
-    weights: tuple[float, float, float] = (1.0, 0.2, 30.0)
+    close_k: NonNegative = 3.0
+    start_distance: Positive = 4.0
+    weights: Annotated[tuple[float, float, float], Min(0)] = (1.0, 0.2, 30.0)
     """ω of (match, close, penalty)."""
 
 

@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxmotion.config.checks import NonNegative
 from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.tasks.base import TaskStep, root_xy, to_heading
 from jaxmotion.tasks.location import Location, LocationConfig, LocationGoal
@@ -55,7 +56,7 @@ from jaxmotion.tasks.location import Location, LocationConfig, LocationGoal
 class JuggleConfig:
     """Juggling three balls (``tasks/juggle.py``; the schedule and reward are the authors')."""
 
-    weight: float = 0.6
+    weight: NonNegative = 0.6
     """ω of the juggling reward (the authors': 0.6 juggling, 0.1 location, 0.06 arms, 0.24 body)."""
 
 

@@ -22,10 +22,12 @@ r_aim = exp(-2 |e + L d* - h| / L); inside the goal radius it is clip(forearm_z 
 from __future__ import annotations
 
 import dataclasses
+from typing import Annotated
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmotion.config.checks import Min, NonNegative, Ordered, Positive, Range
 from jaxmotion.motion.observations import LinkFrames
 from jaxmotion.tasks.base import Task, TaskStep, heading_angle, root_xy, rotate_z, to_heading
 
@@ -34,22 +36,22 @@ from jaxmotion.tasks.base import Task, TaskStep, heading_angle, root_xy, rotate_
 class LocationConfig:
     """Target location (defaults: the authors' walk/crouch settings, notes §1)."""
 
-    radius: float = 0.5
+    radius: Positive = 0.5
     """A goal counts as reached inside this distance (m); the reward is then 1."""
-    speed_range: tuple[float, float] = (1.2, 1.5)
+    speed_range: Annotated[tuple[float, float], Min(0), Ordered()] = (1.2, 1.5)
     """Clip of the required speed (m/s) the reward asks for."""
-    timer_range: tuple[int, int] = (90, 150)
+    timer_range: Annotated[tuple[int, int], Min(1), Ordered(strict=True)] = (90, 150)
     """Control steps a goal lasts: U{lo .. hi-1}."""
     v0_mean: float = 1.0
-    v0_std: float = 0.25
-    v0_range: tuple[float, float] = (0.0, 1.25)
+    v0_std: NonNegative = 0.25
+    v0_range: Annotated[tuple[float, float], Min(0), Ordered()] = (0.0, 1.25)
     """The goal's distance is v0 * timer / 30 with v0 from this truncated normal (m/s)."""
     sharp_turns: bool = True
     """True: a goal in any direction; False: within ±60 degrees of the current heading."""
-    max_overshoot: float = 3.0
+    max_overshoot: NonNegative = 3.0
     """End the episode when the distance to the goal has grown by this much (m) since it was set
     (0 disables)."""
-    weight: float = 0.5
+    weight: NonNegative = 0.5
     """ω of the location objective."""
 
 
@@ -57,26 +59,26 @@ class LocationConfig:
 class HeadingConfig:
     """Target heading and speed (the paper gives no formula; ours is in ``tasks/location.py``)."""
 
-    speed_range: tuple[float, float] = (1.0, 1.5)
+    speed_range: Annotated[tuple[float, float], Min(0), Ordered()] = (1.0, 1.5)
     """Target speed, uniform in this range (m/s)."""
-    turn_deg: float = 90.0
+    turn_deg: Annotated[float, Range(0, 180)] = 90.0
     """Each new heading is the current facing ± U(0, turn_deg)."""
-    timer_range: tuple[int, int] = (90, 150)
+    timer_range: Annotated[tuple[int, int], Min(1), Ordered(strict=True)] = (90, 150)
     """Control steps a heading lasts: U{lo .. hi-1}."""
-    settle_steps: int = 30
+    settle_steps: Annotated[int, Min(0)] = 30
     """Metrics skip this many steps after each new heading (time to turn)."""
-    weight: float = 0.5
+    weight: NonNegative = 0.5
 
 
 @dataclasses.dataclass(frozen=True)
 class AimConfig:
     """Aiming: the right forearm points along a target direction (notes §1)."""
 
-    yaw_deg: tuple[float, float] = (0.0, 45.0)
+    yaw_deg: Annotated[tuple[float, float], Range(-180, 180), Ordered()] = (0.0, 45.0)
     """Aim direction: the horizontal root-to-target direction turned left by U(yaw range)..."""
-    pitch_deg: tuple[float, float] = (0.0, 30.0)
+    pitch_deg: Annotated[tuple[float, float], Range(-90, 90), Ordered()] = (0.0, 30.0)
     """... and up by U(pitch range)."""
-    weight: float = 0.25
+    weight: NonNegative = 0.25
     """ω of the aim objective."""
 
 

@@ -23,11 +23,13 @@ tossed gently upwards, and draws a landing target 8-12 m ahead (``TennisConfig``
 from __future__ import annotations
 
 import dataclasses
+from typing import Annotated
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from jaxmotion.config.checks import Count, Min, NonNegative, Ordered, Positive
 from jaxmotion.motion import rotations as R
 from jaxmotion.physics.character import RACKET_HEAD
 from jaxmotion.physics.props import Props
@@ -40,27 +42,27 @@ class TennisConfig:
     so this one is ours): a ball is fed beside the character every ``feed_every`` steps; hitting
     it pays for its outgoing speed and for where it would land."""
 
-    feed_every: int = 60
+    feed_every: Count = 60
     """Control steps between balls (60: 2 s)."""
-    feed_forward: tuple[float, float] = (0.55, 0.85)
-    feed_right: tuple[float, float] = (0.35, 0.65)
-    feed_height: tuple[float, float] = (0.9, 1.3)
+    feed_forward: Annotated[tuple[float, float], Ordered()] = (0.55, 0.85)
+    feed_right: Annotated[tuple[float, float], Ordered()] = (0.35, 0.65)
+    feed_height: Annotated[tuple[float, float], Min(0), Ordered()] = (0.9, 1.3)
     """Where a ball appears, from the root's ground point in its heading frame (m): ahead, to the
     right (the racket side), above the floor; uniform in each range."""
-    feed_up_speed: tuple[float, float] = (0.5, 1.5)
+    feed_up_speed: Annotated[tuple[float, float], Ordered()] = (0.5, 1.5)
     """Its vertical speed upwards (m/s), as if tossed; no horizontal speed."""
-    target_ahead: tuple[float, float] = (8.0, 12.0)
-    target_side: tuple[float, float] = (-2.0, 2.0)
+    target_ahead: Annotated[tuple[float, float], Ordered()] = (8.0, 12.0)
+    target_side: Annotated[tuple[float, float], Ordered()] = (-2.0, 2.0)
     """The landing target, drawn with each ball: ahead and to the left (m) in the heading frame."""
-    target_speed: float = 10.0
+    target_speed: Positive = 10.0
     """Outgoing speed that earns the full speed half of the hit reward (m/s)."""
-    landing_sigma: float = 2.0
+    landing_sigma: Positive = 2.0
     """Landing half of the hit reward: exp(-d^2 / (2 sigma^2)), d the landing error (m)."""
-    touch_force: float = 1.0
+    touch_force: NonNegative = 1.0
     """A racket contact of at least this normal force (N) is a hit."""
-    weight: float = 0.35
+    weight: NonNegative = 0.35
     """ω of the hit reward."""
-    reach_weight: float = 0.15
+    reach_weight: NonNegative = 0.15
     """ω of the reach reward exp(-4 d^2), d the racket head's distance to the ball before it is
     hit (our shaping; 0 leaves the paper's outcome-only reward)."""
 

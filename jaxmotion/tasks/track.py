@@ -26,10 +26,12 @@ velocities (``env.frames_of``), so a perfect tracker matches them to float preci
 from __future__ import annotations
 
 import dataclasses
+from typing import Annotated, Literal
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from jaxmotion.config.checks import Min, NonNegative, Positive
 from jaxmotion.motion import observations as O
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import qpos_qvel, sample
@@ -41,24 +43,24 @@ class TrackConfig:
     """Motion tracking (Perpetual Humanoid Control; notes phc.md §0-§3): follow the init clips
     frame by frame. Defaults: the authors' code."""
 
-    goal: str = "rotation"
+    goal: Literal["rotation", "keypoint"] = "rotation"
     """'rotation' (24 features per body) or 'keypoint' (positions and velocities only, 9)."""
-    termination: str = "max"
+    termination: Literal["max", "mean"] = "max"
     """'max': any body but the feet farther than ``termination_distance`` from its reference
     (the code, 0.25 m); 'mean': the mean over those bodies (the paper, 0.5 m)."""
-    termination_distance: float = 0.25
-    exponents: tuple[float, float, float, float] = (100.0, 10.0, 0.1, 0.1)
+    termination_distance: Positive = 0.25
+    exponents: Annotated[tuple[float, float, float, float], Min(0)] = (100.0, 10.0, 0.1, 0.1)
     """k of exp(-k * mean squared error) for position, rotation angle, linear and angular velocity."""
-    term_weights: tuple[float, float, float, float] = (0.5, 0.3, 0.1, 0.1)
+    term_weights: Annotated[tuple[float, float, float, float], Min(0)] = (0.5, 0.3, 0.1, 0.1)
     """Weights of those four terms (they sum to 1: a perfect frame pays 1)."""
-    weight: float = 0.5
+    weight: NonNegative = 0.5
     """ω of the imitation objective (the paper's 0.5 task / 0.5 motion prior)."""
     residual: bool = False
     """False: the PD target is the joint range's mid-point + the action (the authors' code).
     True: it is the reference's joint angles one control step ahead (clamped to the joint ranges)
     + the action, so an untrained policy already servos towards the clip and learning only has
     to add the corrections that keep it balanced."""
-    energy_coef: float = 0.0005
+    energy_coef: NonNegative = 0.0005
     """The energy penalty -c * sum_j |tau_j qdot_j| (linear mechanical power, the authors' code;
     the paper prints the square) added to the imitation reward (the scene reports no power on an
     episode's first 3 steps); 0 disables it."""

@@ -17,7 +17,6 @@ only asks it for its distribution.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import jax
@@ -32,59 +31,15 @@ from jaxmotion.algos import gae as G
 from jaxmotion.algos import normalizer as N
 from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
+from jaxmotion.config.checks import check_fits, report, validate
+from jaxmotion.config.errors import ConfigError
 from jaxmotion.envs.bout import make_env
-from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv
-from jaxmotion.training.hparams import DiscConfig, NetConfig, PPOConfig  # noqa: F401  (re-exported)
+from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv  # noqa: F401  (re-exported)
+from jaxmotion.training.hparams import DiscConfig, NetConfig, PPOConfig, Scene, TrainConfig  # noqa: F401  (re-exported)
 from jaxmotion.nets import networks as nets
 from jaxmotion.nets.policies import GaussianPolicy, IncrementalPolicy, PolicyState
 from jaxmotion.training.pool import OpponentPool
 from jaxmotion.tasks import combine_weights
-
-
-@dataclasses.dataclass(frozen=True)
-class TrainConfig:
-    """A complete experiment: environment, networks, algorithm and run settings."""
-
-    env: EnvConfig = EnvConfig()
-    net: NetConfig = NetConfig()
-    ppo: PPOConfig = PPOConfig()
-    disc: DiscConfig = DiscConfig()
-    seed: int = 0
-    iterations: int = 1000
-    """Training iterations (each collects num_envs * horizon samples)."""
-    chunk: int = 10
-    """Iterations per compiled call; Python logs and checkpoints between chunks."""
-    checkpoint_every: int = 10
-    """Chunks between checkpoints."""
-    resume: str = ""
-    """A run folder to continue from its latest checkpoint."""
-    init_from: str = ""
-    """A run folder or ``pretrained/<name>`` entry whose parameters, optimiser and statistics (and
-    iteration count) a new run starts from; ``iterations`` counts from that run's start."""
-    eval_episodes: int = 4
-    eval_every: int = 0
-    """Chunks between deterministic evaluations logged as ``eval/<group>/dtw_error_m`` (0: never)."""
-    meta: str = ""
-    """Incremental learning: a run folder (or a folder of runs: the newest) whose frozen policy
-    is the meta policy (``training/meta.py``); empty: none."""
-    player_policies: str = "shared"
-    """Two-player scenes: 'shared' (one policy, critic and normaliser act for both players, each
-    player a sample of its own) or 'separate' (each player has its own policy, critic, PopArt,
-    observation statistics and optimiser, trained on its own transitions only)."""
-    opponent_pool: int = 0
-    """Two-player self-play: snapshots of the shared policy kept as opponents (``pool.py``); 0: none."""
-    opponent_share: float = 0.25
-    """With a pool: the share of bouts whose player 1 is a pool member (not trained on)."""
-    opponent_every: int = 100
-    """With a pool: iterations between snapshots (the oldest replaced once the pool is full)."""
-    hard_negatives_every: int = 0
-    """Tracking: every this many chunks, run every clip once from t = 0 and reset to the clips it
-    failed more often (``evaluation.tracking.MINING``); 0: never."""
-
-    @property
-    def samples_per_iteration(self) -> int:
-        """Samples per iteration: every player of every environment for ``horizon`` steps."""
-        return self.ppo.num_envs * self.ppo.horizon * self.env.players
 
 
 @struct.dataclass
@@ -145,22 +100,19 @@ class Learner:
 
     def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None, meta=None):
         """``meta``: the frozen meta policy (``training.meta.Meta``) that ``cfg.meta`` names;
-        ``training.runs.make_learner`` loads it."""
-        self.cfg = cfg
+        ``training.runs.make_learner`` loads it. Every setting is checked (``config.checks``)
+        before anything is built: the rules between them against ``env`` where one is given."""
+        self.cfg = validate(cfg, rules=env is None)
         if bool(cfg.meta) != (meta is not None):
-            raise ValueError("a learner with cfg.meta needs its meta policy: build it with training.runs.make_learner")
+            raise ConfigError(f"meta={cfg.meta}: a learner with a meta policy is built by training.runs.make_learner")
         self.env = env if env is not None else make_env(cfg.env)
         self.players = getattr(self.env, "players", 1)
         """Players per environment: each is a sample of its own (one shared policy, self-play)."""
-        if cfg.player_policies not in ("shared", "separate"):
-            raise ValueError(f"player_policies must be 'shared' or 'separate', got {cfg.player_policies!r}")
+        report(cfg, cfg.rules(Scene.of_env(self.env, cfg.env)))
+        check_fits("ppo.num_envs", cfg.ppo.num_envs, env_bytes(self.env, cfg.ppo.horizon), "the environments")
         self.separate = cfg.player_policies == "separate"
         """One policy (and critic, normaliser, PopArt, optimiser) per player: the agent's state has
         a leading player axis (``AGENT_FIELDS``)."""
-        if self.separate and (self.players < 2 or cfg.meta):
-            raise ValueError("player_policies=separate needs a two-player scene (env.players=2) and no meta policy")
-        if cfg.opponent_pool and self.separate:
-            raise ValueError("opponent_pool needs player_policies=shared")
         self.pool = (
             OpponentPool(cfg.opponent_pool, cfg.opponent_share, cfg.opponent_every, cfg.ppo.num_envs, self.players)
             if cfg.opponent_pool > 0
@@ -170,15 +122,13 @@ class Learner:
         self.objective_names = tuple(g.name for g in cfg.env.groups) + tuple(task.reward_names)
         n_obj = len(self.objective_names)
         self.num_objectives = n_obj if cfg.ppo.multi_objective else 1
-        if cfg.ppo.objective_weights:
+        if cfg.ppo.objective_weights:  # their number and signs: TrainConfig.rules
             w = np.asarray(cfg.ppo.objective_weights, np.float64)
-            if len(w) != n_obj or np.any(w < 0) or w.sum() <= 0:
-                raise ValueError(
-                    f"objective_weights must be {n_obj} non-negative numbers (for "
-                    f"{', '.join(self.objective_names)}), got {cfg.ppo.objective_weights}"
-                )
         else:
-            w = combine_weights(tuple(g.weight for g in cfg.env.groups), task.weights())
+            try:
+                w = combine_weights(tuple(g.weight for g in cfg.env.groups), task.weights())
+            except ValueError as e:
+                raise ConfigError(f"env.groups and env.task weights: {e}") from None
         self.reward_weights = jnp.asarray(w / w.sum(), jnp.float32)
         self.body_obs_size = self.env.body_obs_size
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
@@ -213,45 +163,13 @@ class Learner:
             pc.max_grad_norm, pc.actor_lr, pc.critic_lr, pc.meta_weight_lr if self.policy.weight_size else 0.0
         )
         self.disc_optimizer = optax.adam(cfg.disc.lr)
-        self.hard_negatives = cfg.hard_negatives_every > 0
-        if self.hard_negatives and not task.mines_clips:
-            raise ValueError(
-                f"hard_negatives_every needs a task that resets to clips it tracks (env.task.name=track), "
-                f"not {cfg.env.task.name!r}"
-            )
+        self.hard_negatives = cfg.hard_negatives_every > 0  # a task that mines clips: TrainConfig.rules
         # The configured loss's floor; the class attribute below is the default (hinge) one.
         self.MIN_REWARD = D.MIN_REWARD[cfg.disc.loss]
-        self._check_batch()
-        self._check_fall_value()
 
     # The lowest reward a discriminator objective can pay per step (``disc.disc_reward``) with
     # the default hinge loss; an instance has its ``cfg.disc.loss``'s (``disc.MIN_REWARD``).
     MIN_REWARD = D.MIN_REWARD["hinge"]
-
-    def _check_fall_value(self):
-        pc = self.cfg.ppo
-        low = min([self.MIN_REWARD] * bool(self.cfg.env.groups) + [self.env.task.min_reward])
-        if pc.absorbing_termination and pc.terminate_reward is None:
-            raise ValueError("ppo.absorbing_termination needs a ppo.terminate_reward")
-        if pc.absorbing_termination and not pc.terminate_reward < low:
-            raise ValueError(
-                f"ppo.terminate_reward ({pc.terminate_reward}) must be below the lowest reward an "
-                f"objective pays ({low}); otherwise a fall is worth as much as staying up "
-                f"with every reward at its floor"
-            )
-
-    def _check_batch(self):
-        pc = self.cfg.ppo
-        n = pc.num_envs * pc.horizon * self.players
-        if self.pool is not None:  # the pool's samples are left out; minibatches drop the remainder
-            n = pc.horizon * self.pool.num_learner_samples
-            if n < max(pc.minibatch_size, self.cfg.disc.minibatch_size if self.discs else 0):
-                raise ValueError(f"the learner's {n} samples per iteration are fewer than a minibatch")
-        elif n % pc.minibatch_size or (self.discs and n % self.cfg.disc.minibatch_size):
-            raise ValueError(
-                f"num_envs*horizon*players ({n}) must be a multiple of the minibatch sizes "
-                f"({pc.minibatch_size}, {self.cfg.disc.minibatch_size})"
-            )
 
     # ---- init ----------------------------------------------------------------------------
     def init_agent(self, k_pol: jax.Array, k_crit: jax.Array) -> dict:
@@ -593,3 +511,16 @@ class Learner:
 def players_as_samples(traj: Transition) -> Transition:
     """[T, B, P, ...] -> [T, B * P, ...]: every player of every environment a sample."""
     return jax.tree.map(lambda x: x.reshape((x.shape[0], x.shape[1] * x.shape[2]) + x.shape[3:]), traj)
+
+
+def env_bytes(env, horizon: int) -> int:
+    """Bytes one environment takes in a training iteration, at least: its physics state (the
+    scene's data template; else a reset's state, traced without running) and observation twice
+    (the carried ones and the rollout's fresh resets), and ``horizon`` steps of the transitions'
+    observations, actions and discriminator views (float32)."""
+    data = getattr(env, "_data0", None)
+    state = data if data is not None else jax.eval_shape(env.reset, jax.random.PRNGKey(0))
+    players = getattr(env, "players", 1)
+    obs = env.obs_size * players
+    step = 2 * obs + 3 * env.action_size * players + sum(env.disc_obs_sizes())
+    return 2 * (sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(state)) + 4 * obs) + 4 * horizon * step
