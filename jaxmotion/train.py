@@ -2,8 +2,9 @@
 
 The driver is ``training/run.py``; this entry point loads the experiment, applies the overrides
 and adds the hooks that evaluation provides (periodic evaluation, hard-negative mining).
-``resume=<run-folder>`` continues a killed run; ``init_from=<run-or-pretrained-folder>`` starts a
-new run from another run's parameters and statistics. ``JAXMOTION_DISTRIBUTED=1`` calls
+``resume=<run-folder>`` continues a killed run with its saved settings (only ``iterations=`` and
+``checkpoint_every=`` may change; the experiment name is the run's); ``init_from=<run-or-pretrained-folder>``
+starts a new run from another run's parameters and statistics. ``JAXMOTION_DISTRIBUTED=1`` calls
 ``jax.distributed.initialize()`` first, for several hosts (not yet exercised on a real cluster).
 """
 
@@ -19,11 +20,45 @@ from jaxmotion import config as C
 from jaxmotion.config.errors import cli_errors
 from jaxmotion.evaluation.imitation import PERIODIC_EVAL
 from jaxmotion.evaluation.tracking import MINING
+from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.training import run
 from jaxmotion.training.learner import TrainConfig
 
 HOOKS = (MINING, PERIODIC_EVAL)
 """Between-chunk work every run gets; each hook decides from the config whether it is due."""
+RESUMABLE = ("resume", "iterations", "checkpoint_every")
+"""The settings ``resume=`` may be given with: a resumed run keeps all others."""
+
+
+def override_key(item: str) -> str:
+    """The key of a ``key=value`` override (``ppo.gamma=0.9`` -> ``ppo.gamma``)."""
+    return item.partition("=")[0].strip()
+
+
+def resume_target(overrides: list[str]) -> str:
+    """The run folder the last ``resume=`` override names (quotes stripped), or empty."""
+    values = [item.partition("=")[2].strip() for item in overrides if override_key(item) == "resume"]
+    value = values[-1] if values else ""
+    return value[1:-1] if len(value) >= 2 and value[0] == value[-1] and value[0] in "\"'" else value
+
+
+def resumed_config(name: str, overrides: list[str]) -> tuple[str, TrainConfig]:
+    """(experiment, config) of ``resume=<run>``: the run's saved config with the given
+    ``iterations=`` / ``checkpoint_every=`` applied; any other setting is a ``ConfigError``
+    (a resumed run cannot change what it trains). The experiment is the run's, whatever ``name``
+    says (``make train`` passes its default ``EXP``)."""
+    run_dir = resume_target(overrides)
+    keys = dict.fromkeys(override_key(item) for item in overrides if "=" in item)
+    others = [k for k in keys if k not in RESUMABLE]
+    if others:
+        raise C.ConfigError(
+            f"resume={run_dir} keeps the run's saved settings: {', '.join(others)} cannot change "
+            f"(only iterations= and checkpoint_every= can; init_from={run_dir} starts a new run from it)"
+        )
+    experiment, saved = ckpt.read_config(Path(run_dir), TrainConfig)
+    if experiment != name:
+        print(f"resume={run_dir}: a run of experiment {experiment} (not {name}); resuming it", file=sys.stderr)
+    return experiment, C.apply_overrides(saved, overrides)
 
 
 def train(experiment: str, cfg: TrainConfig, run_dir: Path | None = None, **kwargs) -> run.RunResult:
@@ -43,7 +78,10 @@ def main(argv: list[str] | None = None) -> int:
         # Several hosts: JAX finds the cluster (SLURM, Open MPI, or JAX_COORDINATOR_ADDRESS /
         # JAX_NUM_PROCESSES / JAX_PROCESS_ID); the mesh then spans every host's devices.
         jax.distributed.initialize()
-    cfg = C.apply_overrides(C.load_experiment(name), overrides)
+    if resume_target(overrides):
+        name, cfg = resumed_config(name, overrides)
+    else:
+        cfg = C.apply_overrides(C.load_experiment(name), overrides)
     result = train(name, cfg)
     print(f"run folder: {result.run_dir}")
     return 0

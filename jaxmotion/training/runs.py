@@ -2,7 +2,9 @@
 
 A run folder holds ``config.json`` (the experiment's name and its full config) and orbax
 checkpoints; ``load_run`` needs nothing else, so run folders written by earlier versions of the
-code load as long as their config's fields still exist.
+code load as long as their config's fields still exist. A run records the absolute folder its
+clips came from (``config.json``, ``resolved.data``); loading it without ``$JAXMOTION_DATA`` set
+reads the clips from there (``use_recorded_data``).
 """
 
 from __future__ import annotations
@@ -13,9 +15,11 @@ from pathlib import Path
 
 import jax
 
-from jaxmotion.config.errors import JaxmotionError
+from jaxmotion.config.checks import validate
+from jaxmotion.config.errors import JaxmotionError, cli_errors
 from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import HumanoidEnv
+from jaxmotion.motion import data
 from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.training.learner import Learner, TrainConfig, TrainState
 from jaxmotion.training.meta import Meta, resolve_run
@@ -32,25 +36,45 @@ def new_run_dir(experiment: str, root: Path = Path("runs")) -> Path:
     return d
 
 
+def recorded_data_dir(run_dir: Path) -> Path | None:
+    """The data folder a run recorded (``config.json``: ``resolved.data``) if it still exists,
+    else None (pretrained entries and runs of earlier versions record none)."""
+    rec = ckpt.read_resolved(run_dir).get("data")
+    return Path(rec) if isinstance(rec, str) and rec and Path(rec).is_dir() else None
+
+
+def use_recorded_data(run_dir: Path) -> None:
+    """Makes the data folder ``run_dir`` recorded the fallback for clips when ``$JAXMOTION_DATA``
+    is not set (``motion.data.use_recorded``); a run that recorded none changes nothing."""
+    rec = recorded_data_dir(run_dir)
+    if rec is not None:
+        data.use_recorded(rec)
+
+
 def make_learner(cfg: TrainConfig, env: HumanoidEnv | None = None) -> Learner:
     """The learner of ``cfg``, with the frozen meta policy its ``meta`` names loaded from its run
-    (incremental learning; a meta run may itself be incremental)."""
+    (incremental learning; a meta run may itself be incremental). Settings are checked before
+    anything is loaded."""
+    validate(cfg, rules=env is None)
     if not cfg.meta:
         return Learner(cfg, env)
     meta_dir = resolve_run(cfg.meta)  # a missing meta run fails before any clip is loaded
+    use_recorded_data(meta_dir)
     env = env if env is not None else make_env(cfg.env)
     experiment, _, meta_learner, meta_ts = load_run(meta_dir)
     return Learner(cfg, env, meta=Meta(meta_dir, experiment, meta_learner, meta_ts, env))
 
 
 def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
-    """(experiment, config, learner, restored state) of a run folder."""
+    """(experiment, config, learner, restored state) of a run folder: its newest checkpoint that
+    can be read (a line on stderr per damaged newer one); clips from ``$JAXMOTION_DATA``, else
+    the data folder the run recorded. A ``RunFolderError`` if the folder is no usable run."""
+    run_dir = Path(run_dir)
     experiment, cfg = ckpt.read_config(run_dir, TrainConfig)
+    use_recorded_data(run_dir)
     learner = make_learner(cfg)
     like = learner.init(jax.random.PRNGKey(cfg.seed))
-    mgr = ckpt.manager(run_dir)
-    ts, _ = ckpt.restore(mgr, like)
-    mgr.close()
+    ts, _ = ckpt.restore_run(run_dir, like)
     return experiment, cfg, learner, ts
 
 
@@ -60,17 +84,14 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
     discriminator and PopArt statistics, and the iteration count, so a long training goes on
     where that run stopped. The networks must have the same shapes (same experiment settings)."""
     path = check_init_from(path)
-    mgr = ckpt.manager(path)
     try:
-        src, _ = ckpt.restore(mgr, ts, skip=ckpt.PER_ENV + ("rng",))
-    except FileNotFoundError as e:
+        src, _ = ckpt.restore_run(path, ts, skip=ckpt.PER_ENV + ("rng",), doing="starting from")
+    except ckpt.RunFolderError as e:  # no checkpoint, or none that can be read
         raise InitFromError(f"init_from={path}: {e}") from None
-    except ValueError as e:  # orbax: a leaf of another shape or a missing leaf
+    except ValueError as e:  # a leaf of another shape or a missing leaf
         raise InitFromError(
             f"init_from={path} does not fit this experiment's networks or objectives ({str(e).splitlines()[0][:200]})"
         ) from None
-    finally:
-        mgr.close()
     return src
 
 
@@ -79,10 +100,12 @@ class InitFromError(JaxmotionError):
 
 
 def check_init_from(path: str | Path) -> Path:
-    """``path`` if it is a run folder or pretrained entry, else an ``InitFromError``."""
+    """``path`` if it is a run folder or pretrained entry, else an ``InitFromError``; the data
+    folder it recorded becomes the clips' fallback (``use_recorded_data``)."""
     path = Path(path)
     if not (path / ckpt.CONFIG_FILE).exists():
         raise InitFromError(f"init_from={path}: not a run folder or pretrained entry (no {ckpt.CONFIG_FILE})")
+    use_recorded_data(path)
     return path
 
 
@@ -99,12 +122,14 @@ def spaces_mismatch(runs: list[tuple[Path, Learner]]) -> str | None:
     return None
 
 
+@cli_errors
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 3 or argv[0] != "slim":
         print("usage: python -m jaxmotion.training.runs slim <run-folder> <out-folder>", file=sys.stderr)
         return 2
     _, cfg = ckpt.read_config(Path(argv[1]), TrainConfig)
+    use_recorded_data(Path(argv[1]))
     learner = make_learner(cfg)
     step = ckpt.slim(Path(argv[1]), Path(argv[2]), learner.init(jax.random.PRNGKey(cfg.seed)))
     print(f"{argv[2]}: checkpoint {step} without {', '.join(ckpt.PER_ENV)}")
