@@ -13,9 +13,11 @@ rollout, because the PPO ratio depends on it:
   (incremental learning's w per DoF), ``[..., 0]`` for a plain policy.
 
 ``GaussianPolicy`` is the MLP of every paper; ``IncrementalPolicy`` is Xu et al. 2023's Eq. 10,
-``mu + w * stop_gradient(a_meta)`` over a frozen meta policy. A multiplicative composer of frozen
-primitives (PHC's MCP), a mixture of experts with recurrent gating (Won et al. 2021; its gate
-state would ride in ``extra``) and progressive columns are further classes of this shape.
+``mu + w * stop_gradient(a_meta)`` over a frozen meta policy; ``nets.composer.ComposerPolicy``
+weights K frozen primitives (PHC's multiplicative composer). A mixture of experts with recurrent
+gating (Won et al. 2021; its gate state would ride in ``extra``) is a further class of this shape.
+The frozen part a policy builds on makes it (``make_policy`` of ``training.meta.Meta`` and
+``training.primitives.Primitives``), so the learner never names a kind of policy.
 """
 
 from __future__ import annotations

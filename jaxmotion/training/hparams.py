@@ -41,6 +41,10 @@ class NetConfig:
     meta_weight_bias: float = 3.0
     """Incremental learning: initial bias of the sigmoid meta-weight head (3: w = 0.95, so the
     new policy starts as the meta policy; ``training/meta.py``)."""
+    composer: Literal["product", "sum"] = "product"
+    """With ``TrainConfig.primitives``: how the composer combines them (``nets/composer.py``):
+    'product' (the paper's multiplicative Gaussian product) or 'sum' (the authors' code: a weighted
+    sum of the means, fixed sigma exp(init_log_std)). The composer's MLP is ``policy_hidden``."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,6 +160,9 @@ class TrainConfig:
     meta: str = ""
     """Incremental learning: a run folder (or a folder of runs: the newest) whose frozen policy
     is the meta policy (``training/meta.py``); empty: none."""
+    primitives: tuple[str, ...] = ()
+    """Run folders (or pretrained entries) of frozen policies that a composer weights
+    (``training/primitives.py``, ``NetConfig.composer``); PPO trains only the composer."""
     player_policies: Literal["shared", "separate"] = "shared"
     """Two-player scenes: 'shared' (one policy, critic and normaliser act for both players, each
     player a sample of its own) or 'separate' (each player has its own policy, critic, PopArt,
@@ -239,6 +246,10 @@ def _player_policies(cfg: TrainConfig, scene: Scene) -> Iterator[Problem]:
         yield Problem("player_policies", "'separate' needs a two-player scene (env.players=2)")
     if cfg.player_policies == "separate" and cfg.meta:
         yield Problem("player_policies", f"'separate' takes no meta policy (meta={cfg.meta})")
+    if cfg.player_policies == "separate" and cfg.primitives:
+        yield Problem("player_policies", "'separate' takes no primitives")
+    if cfg.meta and cfg.primitives:
+        yield Problem("primitives", f"a composer of primitives takes no meta policy (meta={cfg.meta})")
 
 
 def _opponent_pool(cfg: TrainConfig, scene: Scene) -> Iterator[Problem]:

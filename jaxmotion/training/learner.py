@@ -37,7 +37,7 @@ from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv  # noqa: F401  (re-exported)
 from jaxmotion.training.hparams import DiscConfig, NetConfig, PPOConfig, Scene, TrainConfig  # noqa: F401  (re-exported)
 from jaxmotion.nets import networks as nets
-from jaxmotion.nets.policies import GaussianPolicy, IncrementalPolicy, PolicyState
+from jaxmotion.nets.policies import GaussianPolicy, PolicyState
 from jaxmotion.training.pool import OpponentPool
 from jaxmotion.tasks import combine_weights
 
@@ -99,12 +99,13 @@ class Learner:
     """Static pieces of a run (env, networks, optimisers) and its pure update functions."""
 
     def __init__(self, cfg: TrainConfig, env: HumanoidEnv | None = None, meta=None):
-        """``meta``: the frozen meta policy (``training.meta.Meta``) that ``cfg.meta`` names;
+        """``meta``: the frozen part the policy builds on (``training.meta.Meta`` that ``cfg.meta``
+        names, or ``training.primitives.Primitives`` of ``cfg.primitives``);
         ``training.runs.make_learner`` loads it. Every setting is checked (``config.checks``)
         before anything is built: the rules between them against ``env`` where one is given."""
         self.cfg = validate(cfg, rules=env is None)
-        if bool(cfg.meta) != (meta is not None):
-            raise ConfigError(f"meta={cfg.meta}: a learner with a meta policy is built by training.runs.make_learner")
+        if bool(cfg.meta or cfg.primitives) != (meta is not None):
+            raise ConfigError("a learner with a meta policy or primitives is built by training.runs.make_learner")
         self.env = env if env is not None else make_env(cfg.env)
         self.players = getattr(self.env, "players", 1)
         """Players per environment: each is a sample of its own (one shared policy, self-play)."""
@@ -140,8 +141,9 @@ class Learner:
             state_dependent_std=nc.state_dependent_std,
             init_log_std=nc.init_log_std,
         )
+        # A frozen part (a meta policy, primitives) makes the policy that builds on it.
         self.policy = (
-            IncrementalPolicy(self.env.obs_size, self.env.action_size, meta.act, nc.meta_weight_bias, **pol)
+            meta.make_policy(self.env, nc)
             if meta is not None
             else GaussianPolicy(self.env.obs_size, self.env.action_size, **pol)
         )

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion.config.errors import JaxmotionError
-from jaxmotion.nets.policies import PolicyState
+from jaxmotion.nets.policies import IncrementalPolicy, PolicyState
 from jaxmotion.training import checkpoint as ckpt
 
 
@@ -94,6 +94,19 @@ class Meta:
         )
         self.state = PolicyState(policy_params=ts.policy_params, obs_norm=ts.obs_norm, meta=ts.meta)
         self.iteration = int(ts.iteration)
+
+    def make_policy(self, env, net_cfg) -> IncrementalPolicy:
+        """The incremental policy over this meta policy for ``env`` (``NetConfig``)."""
+        return IncrementalPolicy(
+            env.obs_size,
+            env.action_size,
+            self.act,
+            net_cfg.meta_weight_bias,
+            hidden_sizes=net_cfg.policy_hidden,
+            activation=net_cfg.activation,
+            state_dependent_std=net_cfg.state_dependent_std,
+            init_log_std=net_cfg.init_log_std,
+        )
 
     def act(self, state: PolicyState, obs, rng):
         """Sampled (``rng`` None: mean) meta action [..., A] of the new task's raw observations."""

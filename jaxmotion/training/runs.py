@@ -23,6 +23,7 @@ from jaxmotion.motion import data
 from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.training.learner import Learner, TrainConfig, TrainState
 from jaxmotion.training.meta import Meta, resolve_run
+from jaxmotion.training.primitives import Primitives
 
 
 def new_run_dir(experiment: str, root: Path = Path("runs")) -> Path:
@@ -52,10 +53,18 @@ def use_recorded_data(run_dir: Path) -> None:
 
 
 def make_learner(cfg: TrainConfig, env: HumanoidEnv | None = None) -> Learner:
-    """The learner of ``cfg``, with the frozen meta policy its ``meta`` names loaded from its run
-    (incremental learning; a meta run may itself be incremental). Settings are checked before
+    """The learner of ``cfg``, with the frozen part its policy builds on loaded from its runs: the
+    meta policy ``meta`` names (incremental learning; a meta run may itself be incremental) or the
+    primitives a composer weights (``primitives``). Settings are checked before
     anything is loaded."""
     validate(cfg, rules=env is None)
+    if cfg.primitives:
+        dirs = [resolve_run(p) for p in cfg.primitives]  # missing runs fail before any clip is loaded
+        for d in dirs:
+            use_recorded_data(d)
+        env = env if env is not None else make_env(cfg.env)
+        loaded = [(d, *load_run(d)[2:]) for d in dirs]
+        return Learner(cfg, env, meta=Primitives(loaded, env))
     if not cfg.meta:
         return Learner(cfg, env)
     meta_dir = resolve_run(cfg.meta)  # a missing meta run fails before any clip is loaded
