@@ -4,8 +4,10 @@ The driver is ``training/run.py``; this entry point loads the experiment, applie
 and adds the hooks that evaluation provides (periodic evaluation, hard-negative mining).
 ``resume=<run-folder>`` continues a killed run with its saved settings (only ``iterations=`` and
 ``checkpoint_every=`` may change; the experiment name is the run's); ``init_from=<run-or-pretrained-folder>``
-starts a new run from another run's parameters and statistics. ``JAXMOTION_DISTRIBUTED=1`` calls
-``jax.distributed.initialize()`` first, for several hosts (not yet exercised on a real cluster).
+starts a new run from another run's parameters and statistics. An experiment with
+``progressive.primitives`` > 0 runs the progressive pipeline (``training/progressive.py``).
+``JAXMOTION_DISTRIBUTED=1`` calls ``jax.distributed.initialize()`` first, for several hosts (not yet
+exercised on a real cluster).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from jaxmotion.config.errors import cli_errors
 from jaxmotion.evaluation.imitation import PERIODIC_EVAL
 from jaxmotion.evaluation.tracking import MINING
 from jaxmotion.training import checkpoint as ckpt
-from jaxmotion.training import run
+from jaxmotion.training import progressive, run
 from jaxmotion.training.learner import TrainConfig
 
 HOOKS = (MINING, PERIODIC_EVAL)
@@ -82,6 +84,10 @@ def main(argv: list[str] | None = None) -> int:
         name, cfg = resumed_config(name, overrides)
     else:
         cfg = C.apply_overrides(C.load_experiment(name), overrides)
+    if cfg.progressive.primitives:
+        root = progressive.run_pipeline(name, cfg, train)
+        print(f"run folder: {root}")
+        return 0
     result = train(name, cfg)
     print(f"run folder: {result.run_dir}")
     return 0

@@ -301,6 +301,8 @@ def mines_after(iteration: int, cfg) -> bool:
 
 def _mine(learner, ts, end):
     ts, hard = hard_negative_update(learner, ts, end.run_dir)
+    n = learner.env.init_lib.num_clips
+    end.log({"mining/success_rate": (n - len(hard)) / n, "mining/failed": float(len(hard))})
     end.say(
         f"hard negatives at iteration {int(ts.iteration)}: {len(hard)} of {learner.env.init_lib.num_clips} clips failed"
     )

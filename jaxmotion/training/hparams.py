@@ -134,6 +134,22 @@ class DiscConfig:
 
 
 @dataclasses.dataclass(frozen=True)
+class ProgressiveConfig:
+    """Progressive primitives and their composer (PHC §3.2, ``training/progressive.py``): one
+    command trains primitive 1 on every clip, primitive k from primitive k-1 on the clips k-1
+    fails, each frozen when its tracking success stops rising, then a composer over them all."""
+
+    primitives: Annotated[int, Min(0)] = 0
+    """Primitives to train (at most; fewer when a stage leaves no failed clip); 0: a plain run."""
+    stage_iterations: Count = 2000
+    """At most this many iterations per primitive (a stage may stop earlier: ``patience``)."""
+    patience: Count = 3
+    """A primitive is frozen after this many mining passes without a rise in its success rate."""
+    composer_iterations: Annotated[int, Min(0)] = 2000
+    """Iterations of the composer over the primitives (0: no composer)."""
+
+
+@dataclasses.dataclass(frozen=True)
 class TrainConfig:
     """A complete experiment: environment, networks, algorithm and run settings."""
 
@@ -141,6 +157,7 @@ class TrainConfig:
     net: NetConfig = NetConfig()
     ppo: PPOConfig = PPOConfig()
     disc: DiscConfig = DiscConfig()
+    progressive: ProgressiveConfig = ProgressiveConfig()
     seed: Annotated[int, Range(0, 2**32 - 1)] = 0
     iterations: Annotated[int, Range(1, 2**31 - 1)] = 1000
     """Training iterations (each collects num_envs * horizon samples); a multiple of ``chunk``
@@ -319,5 +336,33 @@ def _mining(cfg: TrainConfig, scene: Scene) -> Iterator[Problem]:
         )
 
 
-RULES = (_run_length, _player_policies, _opponent_pool, _minibatches, _objective_weights, _fall_value, _mining)
+def progressive_problems(cfg: TrainConfig, scene: Scene | None = None) -> Iterator[Problem]:
+    """What keeps ``cfg``'s progressive pipeline from running (checked before its first stage)."""
+    pc = cfg.progressive
+    if not pc.primitives:
+        return
+    if not cfg.hard_negatives_every:
+        yield Problem(
+            "progressive.primitives",
+            "needs hard-negative mining (hard_negatives_every > 0): it finds each stage's clips",
+        )
+    for key in ("stage_iterations", "composer_iterations"):
+        if getattr(pc, key) % cfg.chunk:
+            yield Problem(f"progressive.{key}", f"must be a multiple of chunk ({cfg.chunk})")
+    if cfg.primitives or cfg.meta:
+        yield Problem(
+            "progressive.primitives", "a progressive pipeline makes its own primitives (no primitives= or meta=)"
+        )
+
+
+RULES = (
+    progressive_problems,
+    _run_length,
+    _player_policies,
+    _opponent_pool,
+    _minibatches,
+    _objective_weights,
+    _fall_value,
+    _mining,
+)
 """``TrainConfig.rules``, in order: each yields the ``Problem``s it finds."""

@@ -242,13 +242,16 @@ def train(
     stop_after_chunks: int | None = None,
     on_chunk: Callable[[int, dict], None] | None = None,
     hooks: Sequence[Hook] = (),
+    until: Callable[[ChunkEnd], bool] | None = None,
 ) -> RunResult:
     """Trains ``cfg`` into ``run_dir`` (resuming when ``cfg.resume`` names a run folder: its saved
     settings, with ``cfg``'s ``iterations`` and ``checkpoint_every``).
 
     ``hooks`` run between chunks (``Hook``): those that change the state before the chunk's
     checkpoint, the others after it. ``stop_after_chunks`` ends early after that many chunks (as
-    if killed after a checkpoint); used by tests of resuming. Raises ``TrainingDiverged`` when a
+    if killed after a checkpoint); used by tests of resuming. ``until(end)`` true after a chunk
+    ends the run there, with a checkpoint (a progressive stage whose success stopped rising).
+    Raises ``TrainingDiverged`` when a
     chunk goes non-finite; a new run that fails before its first checkpoint leaves no folder.
     """
     if cfg.resume:
@@ -291,6 +294,7 @@ def train(
             stop_after_chunks,
             on_chunk,
             hooks,
+            until,
         )
     except BaseException:
         if fresh:
@@ -313,7 +317,9 @@ def _restore_resumed(run_dir: Path, ts: TrainState) -> TrainState:
     return ts
 
 
-def _run(experiment, cfg, learner, mesh, ts, run_dir, fresh, progress, tensorboard, stop_after_chunks, on_chunk, hooks):
+def _run(
+    experiment, cfg, learner, mesh, ts, run_dir, fresh, progress, tensorboard, stop_after_chunks, on_chunk, hooks, until
+):
     """The chunk loop of ``train`` (its arguments), in a run folder whose config is written
     (``fresh``: a folder this call created)."""
     if cfg.resume:
@@ -387,14 +393,15 @@ def _run(experiment, cfg, learner, mesh, ts, run_dir, fresh, progress, tensorboa
             for hook in hooks:
                 if hook.before_checkpoint and hook.due(cfg, end):
                     ts = hook.run(learner, ts, end)
-            if done or chunks % cfg.checkpoint_every == 0 or stop_after_chunks == chunks:
+            stop = until is not None and until(end)
+            if done or stop or chunks % cfg.checkpoint_every == 0 or stop_after_chunks == chunks:
                 ckpt.save(mgr, int(ts.iteration), ts)
             for hook in hooks:
                 if not hook.before_checkpoint and hook.due(cfg, end):
                     hook.run(learner, ts, end)
             if on_chunk is not None:
                 on_chunk(int(ts.iteration), last)
-            if stop_after_chunks is not None and chunks >= stop_after_chunks:
+            if stop or (stop_after_chunks is not None and chunks >= stop_after_chunks):
                 break
     finally:
         bar.close()

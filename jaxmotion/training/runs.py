@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import sys
 import time
+import json
 from pathlib import Path
 
 import jax
@@ -74,11 +75,31 @@ def make_learner(cfg: TrainConfig, env: HumanoidEnv | None = None) -> Learner:
     return Learner(cfg, env, meta=Meta(meta_dir, experiment, meta_learner, meta_ts, env))
 
 
+PIPELINE_FILE = "pipeline.json"
+"""A progressive pipeline's record of its stages (``training/progressive.py``)."""
+
+
+def final_stage(run_dir: Path) -> Path:
+    """The run folder a folder stands for: itself, or a progressive pipeline's last finished
+    stage (its ``composer/`` once trained)."""
+    path = Path(run_dir) / PIPELINE_FILE
+    if not path.is_file():
+        return Path(run_dir)
+    try:
+        final = json.loads(path.read_text()).get("final")
+    except (OSError, ValueError, AttributeError):
+        raise ckpt.RunFolderError(f"{path} is damaged") from None
+    if not final:
+        raise ckpt.RunFolderError(f"{run_dir}: a progressive pipeline with no finished stage yet")
+    return Path(run_dir) / final
+
+
 def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
-    """(experiment, config, learner, restored state) of a run folder: its newest checkpoint that
-    can be read (a line on stderr per damaged newer one); clips from ``$JAXMOTION_DATA``, else
-    the data folder the run recorded. A ``RunFolderError`` if the folder is no usable run."""
-    run_dir = Path(run_dir)
+    """(experiment, config, learner, restored state) of a run folder (a progressive pipeline's:
+    its last finished stage): its newest checkpoint that can be read (a line on stderr per
+    damaged newer one); clips from ``$JAXMOTION_DATA``, else the data folder the run recorded.
+    A ``RunFolderError`` if the folder is no usable run."""
+    run_dir = final_stage(Path(run_dir))
     experiment, cfg = ckpt.read_config(run_dir, TrainConfig)
     use_recorded_data(run_dir)
     learner = make_learner(cfg)
@@ -91,10 +112,19 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
     """``ts`` with everything but the environments taken from the latest checkpoint of the run
     (or ``pretrained/<name>`` entry) at ``path``: parameters, optimiser states, observation,
     discriminator and PopArt statistics, and the iteration count, so a long training goes on
-    where that run stopped. The networks must have the same shapes (same experiment settings)."""
+    where that run stopped. The networks must have the same shapes (same experiment settings);
+    the mining counts (``PER_CLIP``) come along only when the clip sets are the same size."""
     path = check_init_from(path)
+    skip = ckpt.PER_ENV + ("rng",)
     try:
-        src, _ = ckpt.restore_run(path, ts, skip=ckpt.PER_ENV + ("rng",), doing="starting from")
+        try:
+            src, _ = ckpt.restore_run(path, ts, skip=skip, doing="starting from")
+        except ValueError as e:
+            if "clip_" not in str(e):
+                raise
+            # Another clip set (a progressive stage on its predecessor's failed clips): the mining
+            # counts are per clip of that set, so this run starts its own.
+            src, _ = ckpt.restore_run(path, ts, skip=skip + PER_CLIP, doing="starting from")
     except ckpt.RunFolderError as e:  # no checkpoint, or none that can be read
         raise InitFromError(f"init_from={path}: {e}") from None
     except ValueError as e:  # a leaf of another shape or a missing leaf
@@ -102,6 +132,10 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
             f"init_from={path} does not fit this experiment's networks or objectives ({str(e).splitlines()[0][:200]})"
         ) from None
     return src
+
+
+PER_CLIP = ("clip_fails", "clip_weights")
+"""The ``TrainState`` fields sized by the run's clip set (hard-negative mining)."""
 
 
 class InitFromError(JaxmotionError):
