@@ -130,3 +130,58 @@ def test_a_pipeline_with_no_finished_stage_is_one_line(tmp_path, monkeypatch):
     with pytest.raises(ckpt.RunFolderError, match="no finished stage"):
         final_stage(root)
     assert final_stage(tmp_path) == tmp_path  # a folder that is no pipeline stands for itself
+
+
+@pytest.mark.slow
+def test_a_stage_on_fewer_clips_starts_from_its_predecessors_networks(tmp_path):
+    """``init_from`` a run of another clip set (a stage on its predecessor's failed clips): every
+    network, statistic and the iteration count come from the predecessor, the per-clip mining
+    counts are the new run's own."""
+    import jax
+    import numpy as np
+
+    from conftest import jit_enabled
+    from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
+    from jaxmotion.motion import MotionLib, make_test_clip
+    from jaxmotion.tasks import TaskConfig
+    from jaxmotion.training import runs
+    from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    from test_train import _leaves
+
+    clips = [make_test_clip(20, 30.0, name=f"c{i}") for i in range(2)]
+    env_cfg = EnvConfig(
+        groups=(GroupConfig(name="full", frames=2),),
+        policy_frames=1,
+        early_termination=False,
+        task=TaskConfig(name="track"),
+    )
+    cfg = TrainConfig(
+        env=env_cfg,
+        net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
+        ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4),
+        disc=DiscConfig(minibatch_size=4),
+        hard_negatives_every=1,
+    )
+
+    def learner(lib):
+        return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
+
+    both, hard = MotionLib.from_clips(clips), MotionLib.from_clips(clips[1:])
+    with jit_enabled():
+        first = learner(both)
+        prev = first.init(jax.random.PRNGKey(1))
+        prev = prev.replace(iteration=prev.iteration + 30, clip_fails=prev.clip_fails + 1)
+        ckpt.write_config(tmp_path / "p1", "x", cfg)
+        mgr = ckpt.manager(tmp_path / "p1")
+        ckpt.save(mgr, 30, prev)
+        mgr.close()
+        second = learner(hard)
+        fresh = second.init(jax.random.PRNGKey(2))
+        got = runs.init_from(second, fresh, tmp_path / "p1")
+    for field in ("policy_params", "critic_params", "disc_params", "obs_norm", "disc_norm", "popart", "opt_state"):
+        want = dict(_leaves(getattr(prev, field)))
+        for k, x in _leaves(getattr(got, field)):
+            np.testing.assert_array_equal(x, want[k], err_msg=f"{field}{k}")
+    assert int(got.iteration) == 30
+    np.testing.assert_array_equal(got.clip_fails, fresh.clip_fails)  # one clip, its own count
+    assert got.clip_fails.shape == (1,)
