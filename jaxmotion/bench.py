@@ -564,7 +564,10 @@ def main(argv: list[str] | None = None) -> int:
     if bad := [s for s in parts if s not in PARTS]:
         p.error(f"unknown part(s) {bad}; choose from {list(PARTS)}")
     if a.batches:
-        batches = tuple(int(s) for s in a.batches.split(",") if s.strip())
+        try:
+            batches = tuple(int(s) for s in a.batches.split(",") if s.strip())
+        except ValueError:
+            p.error(f"--batches {a.batches}: comma-separated whole numbers, e.g. 64,256")
     elif a.quick:
         batches = (1, 4)
     else:

@@ -65,6 +65,8 @@ def check_args(args: argparse.Namespace) -> None:
         problem = "must be a finite number" if not math.isfinite(value) else mark.problem(value)
         if problem:
             raise ConfigError(f"--{name.replace('_', '-')}={show(value)}: {problem}")
+    if getattr(args, "bouts", None) is not None and args.bouts % 2:
+        raise ConfigError(f"--bouts={args.bouts}: must be even (each pair of bouts swaps the players' sides)")
     for name in OUTPUTS:
         if getattr(args, name) is not None:
             check_output(f"--{name}", getattr(args, name))

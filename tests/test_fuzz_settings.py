@@ -213,6 +213,7 @@ EVAL_CASES = [
     (["--episodes", "-3"], "--episodes"),
     (["--steps", "0"], "--steps"),
     (["--bouts", "0"], "--bouts"),
+    (["--bouts", "7"], "--bouts"),
     (["--switch-every", "0"], "--switch-every"),
     (["--switch-every", "nan"], "--switch-every"),
     (["--noise", "-1"], "--noise"),
@@ -255,3 +256,12 @@ def test_eval_output_in_a_new_folder_is_made_before_the_run_loads(no_rollout):
     with pytest.raises(AssertionError, match="accepted"):  # got as far as loading the run
         eval_mod.main([str(RUN), "--json", str(target), "--episodes", "2"])
     assert target.parent.is_dir() and not target.exists()
+
+
+def test_bench_batches_that_are_no_numbers_are_one_line(capsys):
+    from jaxmotion import bench
+
+    with pytest.raises(SystemExit) as e:
+        bench.main(["--batches", "abc"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "--batches abc" in err and "Traceback" not in err
