@@ -164,6 +164,7 @@ def _why(e: BaseException, step_dir: Path) -> str:
     """A short reason for a failed read: tensorstore's status and the file it names
     (``data loss: default/manifest.ocdbt``), else the error's type and first line."""
     msg = str(e).splitlines()[0] if str(e) else ""
+    msg = msg.split(" See full TensorStore details")[0].rstrip(". ")
     code = re.match(r"([A-Z][A-Z_]{3,}): ", msg)
     files = re.findall(r'local file "([^"]+)"', msg)
     if code and files:
@@ -171,7 +172,9 @@ def _why(e: BaseException, step_dir: Path) -> str:
         prefix = str(step_dir.absolute()) + "/"
         name = name[len(prefix) :] if name.startswith(prefix) else name
         return f"{code.group(1).lower().replace('_', ' ')}: {name or '.'}"
-    return f"{type(e).__name__}: {msg[:120]}"
+    if len(msg) > 120:  # at a word, not mid-word
+        msg = msg[:120].rsplit(" ", 1)[0] + " ..."
+    return f"{type(e).__name__}: {msg}"
 
 
 def _mismatch(step_dir: Path, abstract: dict, partial: bool) -> str | None:

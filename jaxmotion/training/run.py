@@ -327,6 +327,8 @@ def _run(
     mgr = ckpt.manager(run_dir)
     metrics_path = run_dir / "metrics.jsonl"
     start = int(ts.iteration)
+    if start >= cfg.iterations and progress:
+        print(f"{run_dir}: at iteration {start} of {cfg.iterations}, nothing to train (iterations=N continues it)")
     chunk_fn = make_train_chunk(learner, mesh, cfg.chunk, ts)
     backends.WARNINGS.take()  # warnings of building the env are not the run's
     writer = None
@@ -366,7 +368,7 @@ def _run(
                     rows.append(row)
                     if writer is not None:
                         for k, v in row.items():
-                            if k != "iteration":
+                            if k != "iteration" and math.isfinite(v):  # a non-finite row stops the run below
                                 writer.add_scalar(k, v, row["iteration"])
             history.extend(rows)
             chunks += 1
