@@ -185,3 +185,16 @@ def test_a_stage_on_fewer_clips_starts_from_its_predecessors_networks(tmp_path):
     assert int(got.iteration) == 30
     np.testing.assert_array_equal(got.clip_fails, fresh.clip_fails)  # one clip, its own count
     assert got.clip_fails.shape == (1,)
+
+
+def test_the_next_stage_gets_the_union_of_the_judged_passes_failures(tmp_path):
+    passes = [
+        {"iteration": 100, "failed": ["a.txt"]},
+        {"iteration": 200, "failed": ["c.txt", "b.txt"]},
+        {"iteration": 300, "failed": ["b.txt"]},
+    ]
+    (tmp_path / "hard_clips.json").write_text(json.dumps({"failed": ["b.txt"], "passes": passes}))
+    assert P.failed_clips(tmp_path, 1) == ["b.txt"]
+    assert P.failed_clips(tmp_path, 2) == ["c.txt", "b.txt"]
+    assert P.failed_clips(tmp_path, 5) == ["a.txt", "c.txt", "b.txt"]
+    assert P.failed_clips(tmp_path / "no_pass_yet") == []

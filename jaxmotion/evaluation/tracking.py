@@ -320,9 +320,8 @@ def hard_negative_update(learner, ts, run_dir: Path | None = None):
     """Hard-negative mining (PHC; the authors' soft rule): every training clip once from t = 0; a
     clip that fails adds to its cumulative failure count, and resets pick clip ``c`` with
     probability ∝ base weight × (1 + failures of c), so failed clips come up more often while
-    none is dropped. Writes the current hard set to ``run_dir/hard_clips.json``; returns the
-    updated state and the failed clips' paths."""
-    import json
+    none is dropped. Writes the current hard set to ``run_dir/hard_clips.json`` (with every pass's
+    failures, ``passes``); returns the updated state and the failed clips' paths."""
 
     res, _ = evaluate_clips(learner, ts)
     failed = np.asarray([not c["success"] for c in res["clips"]])
@@ -334,9 +333,17 @@ def hard_negative_update(learner, ts, run_dir: Path | None = None):
     ts = ts.replace(clip_fails=put(fails, ts.clip_fails), clip_weights=put(w, ts.clip_weights))
     hard = [c["path"] for c, f in zip(res["clips"], failed) if f]
     if run_dir is not None:
+        path = Path(run_dir) / HARD_FILE
+        try:  # every pass so far, for the progressive pipeline's hard set (a union of passes)
+            passes = json.loads(path.read_text()).get("passes", []) if path.exists() else []
+        except (OSError, ValueError, AttributeError):
+            passes = []
+        passes = [p for p in passes if p.get("iteration", 0) < int(ts.iteration)]
+        passes.append({"iteration": int(ts.iteration), "failed": hard})
         doc = {
             "iteration": int(ts.iteration),
             "failed": hard,
+            "passes": passes,
             "success_rate": res["success_rate"],
             "cumulative_failures": {c["path"]: int(n) for c, n in zip(res["clips"], fails)},
             "reset_probability": {c["path"]: float(p) for c, p in zip(res["clips"], w)},

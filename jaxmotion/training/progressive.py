@@ -5,15 +5,17 @@
 1. ``primitive_1/``: the experiment on all its clips (from ``init_from`` if given);
 2. ``primitive_k/`` (k = 2..K): starts from ``primitive_{k-1}``'s latest checkpoint (policy,
    critic, discriminator, statistics: "kept and fine-tuned, never reinitialised") and trains on
-   the clips that primitive failed in its last mining pass; no stage when none failed;
+   the clips that primitive failed in its last mining passes; no stage when none failed;
 3. ``composer/``: a composer (``nets/composer.py``) over the frozen primitives on all the clips,
    PPO training only the composer.
 
 A primitive stage ends ("is frozen") when its success rate on its own clips, measured by the
 run's hard-negative mining passes (``evaluation.tracking.MINING``: every clip once from t = 0),
 has not risen for ``progressive.patience`` passes, reaches 1, or after
-``progressive.stage_iterations``. The authors' version is a sequence of manual steps; the hard set
-in their code is the union of the failures of the last few evaluations, here the last pass's.
+``progressive.stage_iterations``. The next stage's clips are those any of the passes the rule
+judged (the last ``patience`` + 1) failed: which clip fails varies from pass to pass, and the
+authors' code takes the union of the failures of its last few evaluations as well. Their version
+is a sequence of manual steps.
 Departure: every stage's discriminator keeps the experiment's reference clips (the motion prior
 stays the whole set), only the clips episodes start on and mining evaluates change.
 
@@ -63,11 +65,15 @@ def mining_rates(run_dir: Path) -> list[float]:
     return rates
 
 
-def failed_clips(run_dir: Path) -> list[str]:
-    """The clips the stage's last mining pass failed (``hard_clips.json``); all passes tracked
-    every clip when the file says so, none ran when it is missing (then: none known)."""
+def failed_clips(run_dir: Path, passes: int = 1) -> list[str]:
+    """The clips any of the stage's last ``passes`` mining passes failed (``hard_clips.json``),
+    in the order they first failed; none when no pass ran (the file is missing)."""
     path = Path(run_dir) / HARD_FILE
-    return list(json.loads(path.read_text())["failed"]) if path.exists() else []
+    if not path.exists():
+        return []
+    doc = json.loads(path.read_text())
+    runs = [p["failed"] for p in doc.get("passes", [])[-passes:]] or [doc["failed"]]
+    return list(dict.fromkeys(c for failed in runs for c in failed))
 
 
 def latest_step(run_dir: Path) -> int:
@@ -144,7 +150,7 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
             _train_stage(
                 experiment, root / name, primitive_config(base, rec["clips"], rec["init_from"], rec["start"]), train, pc
             )
-            rec.update(_outcome(root / name))
+            rec.update(_outcome(root / name, pc.patience + 1))
             rec["status"] = "done"
             state["final"] = name
             _write_state(root, state)
@@ -156,7 +162,7 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
         if rec["status"] != "done":
             _write_state(root, state)
             _train_stage(experiment, root / "composer", composer_config(base, rec["primitives"]), train, pc)
-            rec.update(_outcome(root / "composer"))
+            rec.update(_outcome(root / "composer", pc.patience + 1))
             rec["status"] = "done"
             state["final"] = "composer"
             _write_state(root, state)
@@ -173,9 +179,9 @@ def _train_stage(experiment: str, run_dir: Path, cfg: TrainConfig, train: Callab
         train(experiment, cfg, run_dir=run_dir, until=lambda end: plateaued(mining_rates(run_dir), pc.patience))
 
 
-def _outcome(run_dir: Path) -> dict:
+def _outcome(run_dir: Path, passes: int) -> dict:
     rates = mining_rates(run_dir)
-    return {"end": latest_step(run_dir), "success": rates, "failed": failed_clips(run_dir)}
+    return {"end": latest_step(run_dir), "success": rates, "failed": failed_clips(run_dir, passes)}
 
 
 def _summary(rec: dict) -> str:
