@@ -531,9 +531,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="tiny run for tests: batches 1,4, 2 steps, no timing floor")
     p.add_argument("--batches", help="comma-separated batch sizes (default 64,256,1024; on GPU also 4096,16384)")
     p.add_argument(
-        "--parts",
-        default="physics,rollout,train",
-        help="comma-separated subset of physics,rollout,train (default: all)",
+        "--parts", default="physics,rollout,train", help="physics,rollout,train (default) or a comma-separated subset"
     )
     p.add_argument("--steps", type=int, help="control steps per physics call (default 8, quick 2)")
     p.add_argument("--seconds", type=float, help="minimum measuring time per number (default 3, quick 0)")
