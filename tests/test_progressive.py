@@ -141,41 +141,22 @@ def test_a_stage_on_fewer_clips_starts_from_its_predecessors_networks(tmp_path):
     import numpy as np
 
     from conftest import jit_enabled
-    from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
     from jaxmotion.motion import MotionLib, make_test_clip
-    from jaxmotion.tasks import TaskConfig
     from jaxmotion.training import runs
-    from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
+    from test_track import tiny_tracker
     from test_train import _leaves
 
     clips = [make_test_clip(20, 30.0, name=f"c{i}") for i in range(2)]
-    env_cfg = EnvConfig(
-        groups=(GroupConfig(name="full", frames=2),),
-        policy_frames=1,
-        early_termination=False,
-        task=TaskConfig(name="track"),
-    )
-    cfg = TrainConfig(
-        env=env_cfg,
-        net=NetConfig(policy_hidden=(8,), critic_hidden=(8,), disc_hidden=(8,), disc_heads=2),
-        ppo=PPOConfig(num_envs=2, horizon=2, minibatch_size=4),
-        disc=DiscConfig(minibatch_size=4),
-        hard_negatives_every=1,
-    )
-
-    def learner(lib):
-        return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
-
     both, hard = MotionLib.from_clips(clips), MotionLib.from_clips(clips[1:])
     with jit_enabled():
-        first = learner(both)
+        first = tiny_tracker(both)
         prev = first.init(jax.random.PRNGKey(1))
         prev = prev.replace(iteration=prev.iteration + 30, clip_fails=prev.clip_fails + 1)
-        ckpt.write_config(tmp_path / "p1", "x", cfg)
+        ckpt.write_config(tmp_path / "p1", "x", first.cfg)
         mgr = ckpt.manager(tmp_path / "p1")
         ckpt.save(mgr, 30, prev)
         mgr.close()
-        second = learner(hard)
+        second = tiny_tracker(hard)
         fresh = second.init(jax.random.PRNGKey(2))
         got = runs.init_from(second, fresh, tmp_path / "p1")
     for field in ("policy_params", "critic_params", "disc_params", "obs_norm", "disc_norm", "popart", "opt_state"):
@@ -198,3 +179,20 @@ def test_the_next_stage_gets_the_union_of_the_judged_passes_failures(tmp_path):
     assert P.failed_clips(tmp_path, 2) == ["c.txt", "b.txt"]
     assert P.failed_clips(tmp_path, 5) == ["a.txt", "c.txt", "b.txt"]
     assert P.failed_clips(tmp_path / "no_pass_yet") == []
+
+
+def test_a_stage_is_judged_only_after_a_mining_pass(tmp_path):
+    """``until`` reads the stage's log after the chunks that mined, not after every chunk."""
+    seen = []
+
+    def train(experiment, cfg, run_dir=None, until=None):
+        rows = [{"iteration": i, "mining/success_rate": 0.5} for i in (10, 20, 30)]
+        (run_dir / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+        end = type("End", (), {})
+        for last in ({"iteration": 31}, {"iteration": 30, "mining/success_rate": 0.5}):
+            end.last = last
+            seen.append(until(end))
+
+    (tmp_path / "stage").mkdir()
+    P._train_stage("x", tmp_path / "stage", _base(primitives=2), train, ProgressiveConfig(primitives=2, patience=2))
+    assert seen == [False, True]

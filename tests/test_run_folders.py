@@ -191,7 +191,9 @@ def test_resume_past_a_half_written_metrics_line(base, tmp_path):
     run = _copy(base, tmp_path / "run")
     with open(run / "metrics.jsonl", "a") as f:
         f.write('{"iteration": 4, "samples": 6')  # killed mid-write
-    _same_as_full(base, _resume(base["cfg"], run))
+    result = _resume(base["cfg"], run)
+    assert [r["iteration"] for r in _rows(run)] == list(range(1, ITERATIONS + 1))  # the cut line is gone
+    _same_as_full(base, result)
 
 
 @pytest.mark.slow

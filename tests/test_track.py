@@ -363,13 +363,11 @@ def test_resets_follow_the_hard_negative_weights():
     assert abs(freq - 0.8) < 0.03 and abs(even - 0.5) < 0.03
 
 
-def test_a_donated_train_state_leaves_the_clip_library_intact():
-    """The hard-negative sampler's weights start as a copy: the compiled chunk donates the state,
-    and an aliased array would delete the library's own weights (measured: the first hard-negative
-    update of a real run then failed with 'Array has been deleted')."""
+def tiny_tracker(lib: MotionLib):
+    """A tracker learner of toy size on ``lib`` (2 envs x horizon 2, 8-unit networks) that mines
+    hard negatives every chunk."""
     from jaxmotion.training.learner import DiscConfig, Learner, NetConfig, PPOConfig, TrainConfig
 
-    lib = MotionLib.from_clips([_moving_clip()])
     env_cfg = EnvConfig(
         groups=(GroupConfig(name="full", frames=2),),
         policy_frames=1,
@@ -383,7 +381,14 @@ def test_a_donated_train_state_leaves_the_clip_library_intact():
         disc=DiscConfig(minibatch_size=4),
         hard_negatives_every=1,
     )
-    learner = Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
+    return Learner(cfg, env=HumanoidEnv(env_cfg, motion_libs=(lib,), init_lib=lib))
+
+
+def test_a_donated_train_state_leaves_the_clip_library_intact():
+    """The hard-negative sampler's weights start as a copy: the compiled chunk donates the state,
+    and an aliased array would delete the library's own weights (measured: the first hard-negative
+    update of a real run then failed with 'Array has been deleted')."""
+    learner = tiny_tracker(MotionLib.from_clips([_moving_clip()]))
     with jit_enabled():
         ts = learner.init(jax.random.PRNGKey(0))  # as train.py does
         jax.jit(lambda s: s, donate_argnums=0)(ts)

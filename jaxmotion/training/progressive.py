@@ -171,12 +171,16 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
 
 
 def _train_stage(experiment: str, run_dir: Path, cfg: TrainConfig, train: Callable, pc: ProgressiveConfig) -> None:
-    """Trains (or resumes, if it has a checkpoint) one stage until it ends or plateaus."""
+    """Trains (or resumes, if it has a checkpoint) one stage until it ends or plateaus (judged
+    after the chunks that ran a mining pass, from the stage's log)."""
+
+    def until(end) -> bool:
+        return "mining/success_rate" in end.last and plateaued(mining_rates(run_dir), pc.patience)
+
     if ckpt.has_checkpoint(run_dir):
-        cfg = dataclasses.replace(cfg, resume=str(run_dir), init_from="")
-        train(experiment, cfg, until=lambda end: plateaued(mining_rates(run_dir), pc.patience))
+        train(experiment, dataclasses.replace(cfg, resume=str(run_dir), init_from=""), until=until)
     else:
-        train(experiment, cfg, run_dir=run_dir, until=lambda end: plateaued(mining_rates(run_dir), pc.patience))
+        train(experiment, cfg, run_dir=run_dir, until=until)
 
 
 def _outcome(run_dir: Path, passes: int) -> dict:

@@ -151,14 +151,23 @@ def nonfinite_metrics(rows: Sequence[dict]) -> tuple[int, list[str]] | None:
     return None
 
 
-def nonfinite_fields(ts: TrainState) -> list[str]:
-    """The ``CHECKED_FIELDS`` of ``ts`` holding a non-finite value (one device transfer)."""
-    flags = {
-        f: [jnp.isfinite(x).all() for x in jax.tree.leaves(getattr(ts, f)) if jnp.issubdtype(x.dtype, jnp.inexact)]
-        for f in CHECKED_FIELDS
+@jax.jit
+def _all_finite(fields: dict) -> dict:
+    """Per field of ``fields``: whether every floating-point leaf is finite (one compiled call)."""
+    return {
+        f: jnp.stack(
+            [jnp.isfinite(x).all() for x in jax.tree.leaves(v) if jnp.issubdtype(x.dtype, jnp.inexact)]
+            + [jnp.asarray(True)]
+        ).all()
+        for f, v in fields.items()
     }
-    flags = jax.device_get(flags)
-    return [f for f, ok in flags.items() if not all(bool(b) for b in ok)]
+
+
+def nonfinite_fields(ts: TrainState) -> list[str]:
+    """The ``CHECKED_FIELDS`` of ``ts`` holding a non-finite value (one compiled call, one
+    device transfer)."""
+    flags = jax.device_get(_all_finite({f: getattr(ts, f) for f in CHECKED_FIELDS}))
+    return [f for f, ok in flags.items() if not bool(ok)]
 
 
 def divergence(
