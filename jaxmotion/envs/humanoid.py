@@ -326,13 +326,16 @@ class HumanoidEnv:
             # (clamped joints or a clip made for another skeleton can put a foot 10 cm deep).
             lift = jnp.maximum(-self.lowest_point(qpos_h[-1]), 0.0)
             qpos_h = qpos_h.at[..., 2].add(lift)
+        # The task may move or replace the start (the tracker's fallen and far starts); its key is
+        # derived from the goal's so that tasks that leave the start alone draw what they always did.
+        qpos_h, qvel_h, start = self.task.start_pose(jax.random.fold_in(k_goal, 1), qpos_h, qvel_h, (clip, t))
         data = self._data0.replace(
             qpos=self._data0.qpos.at[: self._nq].set(qpos_h[-1]), qvel=self._data0.qvel.at[: self._nv].set(qvel_h[-1])
         )
         # The history is what the simulator's kinematics make of the reference poses, so the first
         # windows after a reset are built exactly like every later one.
         hist = self.frames_of(qpos_h, qvel_h)
-        goal = self.task.init(k_goal, _last(hist), (clip, t))
+        goal = self.task.init(k_goal, _last(hist), start)
         data = self.place_props(data, goal)
         state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng, goal=goal)
         return state, self.policy_obs(state)

@@ -78,8 +78,15 @@ class Task:
         """ω of each reward, as configured."""
         return ()
 
-    def init(self, rng: jax.Array, frame: LinkFrames, start: tuple[jax.Array, jax.Array] | None = None) -> Any:
-        """``start``: (clip index, time in s) of the reference state the character was reset to."""
+    def start_pose(self, rng: jax.Array, qpos_h: jax.Array, qvel_h: jax.Array, start: tuple) -> tuple:
+        """(qpos_h, qvel_h, start): the reset's start window ([H, nq], [H, nv], the reference
+        state's, oldest first) and its ``start`` (clip, time), which a task may move or replace
+        and extend for its ``init`` (the tracker's fallen and far starts). Default: unchanged."""
+        return qpos_h, qvel_h, start
+
+    def init(self, rng: jax.Array, frame: LinkFrames, start: tuple | None = None) -> Any:
+        """``start``: (clip index, time in s) of the reference state the character was reset to,
+        and whatever ``start_pose`` added."""
         return jnp.zeros((0,), jnp.float32)
 
     def observe(self, goal: Any, frame: LinkFrames) -> jax.Array:

@@ -19,6 +19,9 @@ goal is that clip's next frame. Notes ``phc.md`` §1-§3, the authors' code wher
   clip that ends truncates the episode (bootstrapped), a loop clip too (its wrap would move the
   reference root back to the cycle's start).
 
+With ``track.recovery.enabled`` the tracker also learns fail-state recovery: starts from the
+ground and from far away, the point goal while far, recovery episodes (``tasks/recovery.py``).
+
 Reference link frames come from the forward kinematics of the interpolated joint angles and
 velocities (``env.frames_of``), so a perfect tracker matches them to float precision.
 """
@@ -26,7 +29,8 @@ velocities (``env.frames_of``), so a perfect tracker matches them to float preci
 from __future__ import annotations
 
 import dataclasses
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
+
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -35,6 +39,7 @@ from jaxmotion.config.checks import Min, NonNegative, Positive
 from jaxmotion.motion import observations as O
 from jaxmotion.motion import rotations as R
 from jaxmotion.motion.motionlib import qpos_qvel, sample
+from jaxmotion.tasks import recovery as RC
 from jaxmotion.tasks.base import Task, TaskStep
 
 
@@ -64,12 +69,15 @@ class TrackConfig:
     """The energy penalty -c * sum_j |tau_j qdot_j| (linear mechanical power, the authors' code;
     the paper prints the square) added to the imitation reward (the scene reports no power on an
     episode's first 3 steps); 0 disables it."""
+    recovery: RC.RecoveryConfig = RC.RecoveryConfig()
+    """Fail-state recovery (``tasks/recovery.py``): off by default."""
 
 
 @struct.dataclass
 class TrackGoal:
     clip: jax.Array  # int32: the clip being tracked
     time: jax.Array  # reference time (s) of the character's current frame
+    rec: Any = None  # RecoveryState with recovery enabled (None keeps older run folders' layout)
 
 
 class Track(Task):
@@ -93,29 +101,64 @@ class Track(Task):
         feet = {ch.body_index(b) for b in env.cfg.allowed_contacts}
         self._checked = jnp.asarray([b for b in range(ch.num_bodies) if b not in feet], jnp.int32)
         self.goal_parts = (("track", ch.num_bodies * (24 if c.goal == "rotation" else 9)),)
+        self._pool = None
+        if c.recovery.enabled:
+            from jaxmotion.physics.falls import fallen_states
+
+            pool = fallen_states(
+                env.cfg.physics, c.recovery.pool_size, c.recovery.pool_seed, scale=env.cfg.action_scale
+            )
+            self._pool = jnp.asarray(pool)
+
+    @property
+    def recovering(self) -> bool:
+        return self.cfg.track.recovery.enabled
 
     def weights(self):
         return (self.cfg.track.weight,)
 
+    def ahead(self, goal: TrackGoal, dt: float) -> jax.Array:
+        """How far the reference clock moves in ``dt``: not at all while a recovery freezes it."""
+        if goal.rec is None:
+            return jnp.asarray(dt, jnp.float32)
+        return jnp.where(goal.rec.frozen & (goal.rec.grace > 0), 0.0, dt)
+
     def reference(self, goal: TrackGoal, dt_ahead: float) -> O.LinkFrames:
-        """The tracked clip's link frames ``dt_ahead`` seconds after the current frame."""
-        ms = sample(self.env.init_lib, goal.clip, goal.time + dt_ahead)
+        """The tracked clip's link frames ``dt_ahead`` seconds of its clock after the current frame."""
+        ms = sample(self.env.init_lib, goal.clip, goal.time + self.ahead(goal, dt_ahead))
         return self.env.frames_of(*qpos_qvel(ms))
 
     def pd_base(self, goal: TrackGoal) -> jax.Array | None:
         """With ``residual``: the reference's joint angles one control step ahead, within limits."""
         if not self.cfg.track.residual:
             return None
-        dof = sample(self.env.init_lib, goal.clip, goal.time + self.env.dt).dof_pos
+        dof = sample(self.env.init_lib, goal.clip, goal.time + self.ahead(goal, self.env.dt)).dof_pos
         return self.env.clip_dof(dof)
+
+    def start_pose(self, rng, qpos_h, qvel_h, start):
+        """With recovery: fallen and far starts (``recovery.recovery_starts``); the start kind
+        joins ``start`` for ``init``."""
+        if not self.recovering:
+            return qpos_h, qvel_h, start
+        qpos_h, qvel_h, kind = RC.recovery_starts(rng, qpos_h, qvel_h, self._pool, self.cfg.track.recovery)
+        return qpos_h, qvel_h, (*start, kind)
 
     def init(self, rng, frame, start=None):
         if start is None:
             raise ValueError("the track task needs the reset's clip and time (env.reset passes them)")
-        return TrackGoal(clip=jnp.asarray(start[0], jnp.int32), time=jnp.asarray(start[1], jnp.float32))
+        goal = TrackGoal(clip=jnp.asarray(start[0], jnp.int32), time=jnp.asarray(start[1], jnp.float32))
+        if not self.recovering:
+            return goal
+        kind = jnp.asarray(start[2] if len(start) > 2 else 0, jnp.int32)
+        dist = RC.root_distance(self.reference(goal, 0.0), frame)
+        grace = jnp.where(kind > 0, self.cfg.track.recovery.recovery_steps, 0).astype(jnp.int32)
+        frozen = (kind & RC.FALLEN) > 0
+        return goal.replace(rec=RC.RecoveryState(grace=grace, frozen=frozen, dist=dist))
 
     def observe(self, goal: TrackGoal, frame: O.LinkFrames) -> jax.Array:
         ref = self.reference(goal, self.env.dt)
+        if self.recovering and self.cfg.track.recovery.point_goal:
+            ref = RC.far_goal(ref, frame, self.cfg.track.recovery)
         _, inv = O.heading_frame(frame.pos[0], frame.quat[0])
         rot = lambda v: R.quat_rotate(jnp.broadcast_to(inv, v.shape[:-1] + (4,)), v)
         dp = rot(ref.pos - frame.pos)
@@ -146,27 +189,42 @@ class Track(Task):
 
     def step(self, goal: TrackGoal, prev, frame, rng, power=None) -> TaskStep:
         c, dt = self.cfg.track, self.env.dt
-        e = self.errors(self.reference(goal, dt), frame)
+        ref = self.reference(goal, dt)
+        e = self.errors(ref, frame)
         checked = e["body"][self._checked]
         far = jnp.max(checked) if c.termination == "max" else jnp.mean(checked)
         lib = self.env.init_lib
-        t = goal.time + dt
+        t = goal.time + self.ahead(goal, dt)
         # The clip ends when it has no next frame to track, loop clips too: ``sample`` wraps a
         # loop's time without carrying its root forward, so past the end the reference would jump
         # back to the cycle's start and every episode there would end as a failure.
         ended = t + dt > lib.clip_duration[goal.clip] + 1e-6
         info = {"body_error_m": jnp.mean(e["body"]), "max_error_m": jnp.max(checked)}
         reward = self.imitation_reward(e)
+        terminated = far > c.termination_distance
+        goal = goal.replace(time=t)
+        if self.recovering:
+            reward, terminated, goal = self._recovery_step(goal, ref, frame, reward, terminated, rng, info)
         if c.energy_coef and power is not None:
             info["energy"] = c.energy_coef * power
             reward = reward - info["energy"]
-        return TaskStep(
-            goal=goal.replace(time=t),
-            rewards=reward[None],
-            terminated=far > c.termination_distance,
-            info=info,
-            truncated=ended,
-        )
+        return TaskStep(goal=goal, rewards=reward[None], terminated=terminated, info=info, truncated=ended)
+
+    def _recovery_step(self, goal: TrackGoal, ref, frame, imitation, would_end, rng, info):
+        """(reward, terminated, goal) with recovery: the point-goal reward, no termination while
+        a recovery's grace lasts, and an episode the rule would end going on as a recovery
+        episode with probability ``recovery_prob`` (``tasks/recovery.py``)."""
+        rc, rec = self.cfg.track.recovery, goal.rec
+        dist = RC.root_distance(ref, frame)
+        reward = RC.recovery_reward(rec.dist, dist, imitation, rc)
+        in_grace = rec.grace > 0
+        again = would_end & ~in_grace & (jax.random.uniform(rng) < rc.recovery_prob)
+        grace = jnp.where(again, rc.recovery_steps, jnp.maximum(rec.grace - 1, 0)).astype(jnp.int32)
+        frozen = again | (rec.frozen & (grace > 0))
+        info["root_distance_m"] = dist
+        info["recovering"] = (in_grace | again).astype(jnp.float32)
+        rec = RC.RecoveryState(grace=grace, frozen=frozen, dist=dist)
+        return reward, would_end & ~in_grace & ~again, goal.replace(rec=rec)
 
     def summary(self, info, alive):
         if not alive.any():
