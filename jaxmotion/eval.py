@@ -50,7 +50,14 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-NUMBERS = {"episodes": Min(1), "steps": Min(1), "bouts": Min(1), "switch_every": Min(0, open=True), "noise": Min(0)}
+NUMBERS = {
+    "episodes": Min(1),
+    "steps": Min(1),
+    "bouts": Min(1),
+    "switch_every": Min(0, open=True),
+    "noise": Min(0),
+    "trials": Min(1),
+}
 """The numeric flags (the evaluators' included) and their ranges, checked before the run loads."""
 OUTPUTS = ("json", "video", "html")
 

@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxmotion.envs.humanoid import HumanoidEnv
+from jaxmotion.evaluation import recovery
 from jaxmotion.evaluation.rollout import program
 from jaxmotion.motion.loaders import MotionFileError, load_clips
 from jaxmotion.motion.motionlib import MotionLib
@@ -395,10 +396,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="follow clips perturbed like a video pose estimate (1: the defaults of "
         "motion/noise.PoseNoise), scored against the clean clips",
     )
+    recovery.add_arguments(g)
 
 
 def run(args, experiment: str, cfg, learner, ts) -> int:
-    """``python -m jaxmotion.eval <tracker-run>``: every clip once from t = 0."""
+    """``python -m jaxmotion.eval <tracker-run>``: every clip once from t = 0 (``--recovery``:
+    the recovery trials of ``evaluation/recovery.py`` instead)."""
+    if args.recovery:
+        return recovery.run(args, experiment, cfg, learner, ts)
     res, ro = evaluate_clips(learner, ts, args.clips, noise=args.noise, seed=args.seed)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     noisy = f" (inputs perturbed at noise level {args.noise:g})" if args.noise else ""
