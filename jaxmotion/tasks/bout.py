@@ -75,7 +75,17 @@ class FencingConfig:
     win_reward: NonNegative = 1.0
     """r_match paid once at the result: +win to the winner, -win to the loser, 0 for a draw (the code: 10)."""
     close_k: NonNegative = 3.0
+    close_squared: bool = False
+    """r_close = exp(-k d) (the authors' code, the default) or exp(-k d^2) (the paper's boxing
+    Eq. 3); d: the nearest distance from a blade point to an opponent target. At the 4-m start
+    d is about 3.3 m (zero pose; 2.8-4.3 m, median 3.25 m over resets from the fencing clips),
+    where exp(-3 d^2) is about 1e-14 (at most 1e-10): below the critic's error and the
+    advantage standardisation's eps (1e-8), so no closeness signal reaches a policy that has
+    not yet walked up. exp(-3 d) there is about 5e-5 (2e-6 to 2.5e-4) and grows 20-fold a metre."""
     start_distance: Positive = 4.0
+    """Root-to-root distance at the start (m). The authors start from a capture of two fencers
+    at fencing distance but give no number (notes won2021.md §5); 4 m is the distance between a
+    real piste's on-guard lines."""
     weights: Annotated[tuple[float, float, float], Min(0)] = (1.0, 0.2, 30.0)
     """ω of (match, close, penalty)."""
 
@@ -163,6 +173,12 @@ class BoutTask(Task):
             out.append(jnp.min(jnp.linalg.norm(sp[:, None] - tp[None], axis=-1)))
         return jnp.stack(out)
 
+    def close_reward(self, frame: LinkFrames) -> jax.Array:
+        """[2] r_close = exp(-k d^2) or exp(-k d) (``close_squared``) of ``closeness``."""
+        c = self.sub
+        d = self.closeness(frame)
+        return jnp.exp(-c.close_k * (d**2 if c.close_squared else d))
+
     def markers(self, goal, frame: LinkFrames) -> dict[str, jax.Array]:
         return {}
 
@@ -196,8 +212,7 @@ class Boxing(BoutTask):
         c, dt = self.sub, self.env.dt
         dealt = jnp.where(forces >= c.touch_threshold, jnp.minimum(forces, c.damage_clip), 0.0)
         match = dealt - dealt[::-1]
-        d = self.closeness(frame)
-        close = jnp.exp(-c.close_k * (d**2 if c.close_squared else d))
+        close = self.close_reward(frame)
         root = frame.pos[:, 0, :2]
         to_op = root[::-1] - root
         dist = jnp.linalg.norm(to_op, axis=-1)
@@ -284,8 +299,7 @@ class Fencing(BoutTask):
         c = self.sub
         touch = forces >= c.touch_threshold
         new, ended, win = self.rules(goal, touch, steps)
-        d = self.closeness(frame)
-        close = jnp.exp(-c.close_k * d**2)
+        close = self.close_reward(frame)
         root = frame.pos[:, 0, :2]
         out = (jnp.abs(root[:, 0]) > c.piste[0] / 2) | (jnp.abs(root[:, 1]) > c.piste[1] / 2)
         penalised = fell | out
