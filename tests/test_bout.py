@@ -361,7 +361,7 @@ def _swap(env: BoutEnv, s: BoutState) -> BoutState:
     return s.replace(
         data=data,
         frame=jax.tree.map(lambda x: x[::-1], s.frame),
-        goal=s.goal.replace(rope_steps=s.goal.rope_steps[::-1]),
+        goal=s.goal.replace(rope_steps=s.goal.rope_steps[::-1], hit_wait=s.goal.hit_wait[::-1]),
     )
 
 

@@ -1,4 +1,4 @@
-"""Bout rules without physics: fencing's closeness at the start."""
+"""Bout rules without physics: fencing's closeness at the start, boxing's hit onsets."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from conftest import jit_enabled
 from jaxmotion.tasks import TaskConfig
 from test_bout import _env, _frames
 
@@ -51,3 +52,54 @@ def test_fencing_closeness_is_visible_at_the_default_start():
     sq = np.asarray(env_sq.task.close_reward(f))
     np.testing.assert_allclose(sq, np.exp(-3.0 * d**2), rtol=1e-2)
     assert np.all(sq < 1e-10), sq
+
+
+def _boxing_run(forces: np.ndarray, **boxing) -> tuple[np.ndarray, np.ndarray]:
+    """Runs the boxing task over scoring forces [T, 2] with the players 3 m apart (no other
+    rule fires); returns the match rewards [T, 2] and the counted hits [T, 2]."""
+    task_cfg = TaskConfig(name="boxing", boxing=dataclasses.replace(TaskConfig().boxing, **boxing))
+    env = _env("boxing", task=task_cfg)
+    task = env.task
+    f = _frames(env, [[-1.5, 0.0], [1.5, 0.0]])
+    qv = jnp.zeros((2, env.layout.nv))
+    with jit_enabled():
+        step = jax.jit(lambda g, x, t: task.step(g, f, f, x, jnp.zeros(2, bool), qv, qv, t, None))
+    g = task.init(None, f)
+    np.testing.assert_array_equal(g.hit_wait, [0, 0])
+    match, hit = [], []
+    for t, x in enumerate(np.asarray(forces, np.float32), 1):
+        with jit_enabled():
+            out = step(g, jnp.asarray(x), jnp.asarray(t))
+        g = out.goal
+        match.append(np.asarray(out.rewards[:, 0]))
+        hit.append(np.asarray(out.info["hit"]))
+    return np.asarray(match), np.asarray(hit)
+
+
+def test_a_held_contact_pays_once_per_half_second():
+    forces = np.zeros((40, 2))
+    forces[:20, 0] = 150.0  # player 0's glove held on player 1's chest for 20 steps (0.67 s)
+    match, hit = _boxing_run(forces)
+    assert np.flatnonzero(hit[:, 0]).tolist() == [0, 15]  # steps 1 and 16: 0.5 s at 30 Hz apart
+    assert not hit[:, 1].any()
+    np.testing.assert_allclose(match[[0, 15]], [[150.0, -150.0]] * 2)
+    assert match.sum(0).tolist() == [300.0, -300.0]  # per step it would have been 3000
+    # The paper's Eq. 2 read literally (interval 0): every step of contact pays.
+    match0, hit0 = _boxing_run(forces, touch_interval=0.0)
+    assert hit0[:20, 0].all() and not hit0[20:].any()
+    assert match0.sum(0).tolist() == [3000.0, -3000.0]
+
+
+def test_two_touches_a_second_apart_pay_twice_and_each_player_waits_alone():
+    forces = np.zeros((45, 2))
+    forces[0:3, 0] = 80.0  # a touch of 3 steps
+    forces[30:33, 0] = 300.0  # another, 1 s later (clipped at 200 N)
+    forces[5:8, 1] = 50.0  # the opponent's hit, inside player 0's wait
+    forces[12, 1] = 60.0  # and one inside its own wait: not counted
+    match, hit = _boxing_run(forces)
+    assert np.flatnonzero(hit[:, 0]).tolist() == [0, 30]
+    assert np.flatnonzero(hit[:, 1]).tolist() == [5]
+    np.testing.assert_allclose(match[0], [80.0, -80.0])
+    np.testing.assert_allclose(match[5], [-50.0, 50.0])
+    np.testing.assert_allclose(match[30], [200.0, -200.0])
+    np.testing.assert_allclose(match.sum(0), [230.0, -230.0])
