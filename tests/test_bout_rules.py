@@ -1,4 +1,5 @@
-"""Bout rules without physics: fencing's closeness at the start, boxing's hit onsets."""
+"""Bout rules without physics: fencing's closeness at the start, boxing's hit onsets, the round
+length of the sports experiments, and the evaluator's falls per minute."""
 
 from __future__ import annotations
 
@@ -7,8 +8,11 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
-from conftest import jit_enabled
+from conftest import REPO, jit_enabled
+from jaxmotion.config import load_experiment
+from jaxmotion.evaluation.bouts import print_summary, summarize
 from jaxmotion.tasks import TaskConfig
 from test_bout import _env, _frames
 
@@ -103,3 +107,32 @@ def test_two_touches_a_second_apart_pay_twice_and_each_player_waits_alone():
     np.testing.assert_allclose(match[5], [-50.0, 50.0])
     np.testing.assert_allclose(match[30], [200.0, -200.0])
     np.testing.assert_allclose(match.sum(0), [230.0, -230.0])
+
+
+def test_sports_experiments_rounds():
+    exp = REPO / "experiments"
+    for name, steps in (("boxing/selfplay", 1800), ("boxing/selfplay_meta", 1800), ("fencing/selfplay", 600)):
+        cfg = load_experiment(name, exp)
+        assert cfg.env.physics.control_hz == 30.0 and cfg.env.episode_steps == steps, name
+        assert cfg.env.task.boxing.touch_interval == 0.5 and not cfg.env.task.fencing.close_squared
+
+
+def test_falls_per_minute_over_the_minutes_played(capsys):
+    oc = {
+        "score": np.array([1, -1, 0, 1]),
+        "length_s": np.array([60.0, 30.0, 15.0, 15.0]),  # 2 minutes in all
+        "fall_me": np.array([False, True, True, False]),
+        "fall_op": np.array([True, False, False, False]),
+        "penalty_me": np.array([False, True, True, False]),
+        "penalty_op": np.array([True, False, False, False]),
+        "damage_diff": np.array([10.0, -5.0, 0.0, 3.0]),
+        "hits_me": np.array([2, 0, 0, 1]),
+        "hits_op": np.array([0, 1, 0, 0]),
+    }
+    res = summarize("boxing", oc)
+    assert res["minutes_played"] == pytest.approx(2.0)
+    assert res["falls"] == {"self": 2, "opponent": 1}
+    assert res["falls_per_minute"] == pytest.approx({"self": 1.0, "opponent": 0.5})
+    print_summary("vs itself", {**res, "round_s": 60.0}, "boxing")
+    line = capsys.readouterr().out
+    assert "falls 2/1 (1.00/0.50 a minute)" in line and "(round 60 s)" in line
