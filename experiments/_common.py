@@ -325,7 +325,10 @@ def bout(sport: str, round_s: float, iterations: int = 6000, num_envs: int = 32)
     stays. ω (boxing): match 0.4, close 0.25, facing 0.1, energy 0.05, penalty 0.2; fencing
     match 0.5, close 0.3, penalty 0.2. The paper's form: ``ppo.multi_objective=false`` with
     ``env.task.boxing.weights=1,0.2,0.05,0.001,30``. The actor's lr is the paper's 1e-5 (3e-5
-    with these standardised advantages gave PPO KL steps of 0.2-24)."""
+    with these standardised advantages gave PPO KL steps of 0.2-24).
+
+    The round, ``round_s``, becomes ``env.episode_steps`` at the control rate: the one time limit
+    that training truncates bouts at and ``python -m jaxmotion.eval`` plays bouts to."""
     from jaxmotion.physics.arena import ArenaConfig
     from jaxmotion.physics.sim import PhysicsConfig
     from jaxmotion.tasks import BoxingConfig
@@ -338,8 +341,9 @@ def bout(sport: str, round_s: float, iterations: int = 6000, num_envs: int = 32)
         boxing=BoxingConfig(weights=(0.4, 0.25, 0.1, 0.05, 0.2)),
         fencing=FencingConfig(weights=(0.5, 0.3, 0.2)),
     )
+    physics = PhysicsConfig(sim_hz=240.0, sword_shield=fencing)
     env = EnvConfig(
-        physics=PhysicsConfig(sim_hz=240.0, sword_shield=fencing),
+        physics=physics,
         init_motions=FENCING_CLIPS if fencing else BOXING_CLIPS,
         groups=(),
         players=2,
@@ -347,7 +351,7 @@ def bout(sport: str, round_s: float, iterations: int = 6000, num_envs: int = 32)
         task=task,
         policy_frames=1,
         allowed_contacts=("right_foot", "left_foot", "right_shin", "left_shin"),
-        episode_steps=int(round(round_s * 30)),
+        episode_steps=int(round(round_s * physics.control_hz)),
     )
     return TrainConfig(
         env=env,

@@ -361,7 +361,7 @@ def _swap(env: BoutEnv, s: BoutState) -> BoutState:
     return s.replace(
         data=data,
         frame=jax.tree.map(lambda x: x[::-1], s.frame),
-        goal=s.goal.replace(rope_steps=s.goal.rope_steps[::-1]),
+        goal=s.goal.replace(rope_steps=s.goal.rope_steps[::-1], hit_wait=s.goal.hit_wait[::-1]),
     )
 
 
@@ -424,13 +424,15 @@ def test_self_play_iteration_and_an_antisymmetric_evaluation(tmp_path):
         new, m = jax.jit(learner.iteration)(ts)
         assert all(np.all(np.isfinite(np.asarray(v))) for v in jax.tree.leaves(m))
         assert int(new.iteration) == 1
-        ab, ro = play(learner, ts, (learner, ts2), bouts=8, steps=30)
+        ab, ro = play(learner, ts, (learner, ts2), bouts=8)  # bouts as long as the config's round, 30 steps
         ba, _ = play(learner, ts2, (learner, ts), bouts=8, steps=30)
     # Pairs of bouts share a start state with the sides swapped: A vs B is exactly -(B vs A).
     assert ab["damage_diff_mean"] == pytest.approx(-ba["damage_diff_mean"], abs=1e-3)
     assert (ab["wins"], ab["draws"], ab["losses"]) == (ba["losses"], ba["draws"], ba["wins"])
     assert ab["falls"] == {"self": ba["falls"]["opponent"], "opponent": ba["falls"]["self"]}
     assert ab["falls"]["self"] + ab["falls"]["opponent"] > 0  # something happened in these bouts
+    assert ab["round_s"] == pytest.approx(1.0) and ab["minutes_played"] <= 8 / 60
+    assert ab["falls_per_minute"]["self"] == pytest.approx(ab["falls"]["self"] / ab["minutes_played"])
     assert ro["qpos"].shape[:2] == (30, 8) and np.all(np.isfinite(ro["qpos"]))
     page = write_bout_html(learner, ro, tmp_path / "bout.html").read_text()
     assert "player 0" in page and "player 1" in page

@@ -7,7 +7,8 @@ players' link frames ``frame`` ([2, nb, ...]) and reports per player (leading ax
 * ``init(rng, frame) -> goal``: the rules' state (timers, touches);
 * ``observe(goal, frame, k) -> [goal_size]``: player ``k``'s task features (paper Eq. 6);
 * ``step(goal, prev, frame, forces, fell, qvel0, qvel, steps, rng) -> TaskStep``: ``forces`` [2]
-  is each player's scoring contact force (N, the maximum over the control step's substeps),
+  is each player's scoring contact force on the opponent (N, the maximum over the control
+  step's substeps),
   ``fell`` [2] its fall, ``qvel0``/``qvel`` [2, nv] its joint velocities before/after the step;
   rewards [2, R], ``terminated`` [2] (that player's bout is over: its penalty or a result).
 
@@ -45,6 +46,11 @@ class BoxingConfig:
     """Each side's scoring contact force is clipped here (N) before the difference is taken."""
     touch_threshold: NonNegative = 1.0
     """Scoring forces below this (N) count as no touch."""
+    touch_interval: NonNegative = 0.5
+    """A hit is counted at its onset: after a player's counted hit, its scoring contacts are
+    ignored for this long (s; the authors' ``touch_interval``), so a glove held on a target
+    pays once per interval, not on every step of the contact. 0: every step of contact pays
+    (the paper's Eq. 2 read literally)."""
     close_k: NonNegative = 3.0
     close_squared: bool = True
     """r_close = exp(-k d^2) (the paper) or exp(-k d) (the code); d: the nearest glove-target distance."""
@@ -75,7 +81,17 @@ class FencingConfig:
     win_reward: NonNegative = 1.0
     """r_match paid once at the result: +win to the winner, -win to the loser, 0 for a draw (the code: 10)."""
     close_k: NonNegative = 3.0
+    close_squared: bool = False
+    """r_close = exp(-k d) (the authors' code, the default) or exp(-k d^2) (the paper's boxing
+    Eq. 3); d: the nearest distance from a blade point to an opponent target. At the 4-m start
+    d is about 3.3 m (zero pose; 2.8-4.3 m, median 3.25 m over resets from the fencing clips),
+    where exp(-3 d^2) is about 1e-14 (at most 1e-10): below the critic's error and the
+    advantage standardisation's eps (1e-8), so no closeness signal reaches a policy that has
+    not yet walked up. exp(-3 d) there is about 5e-5 (2e-6 to 2.5e-4) and grows 20-fold a metre."""
     start_distance: Positive = 4.0
+    """Root-to-root distance at the start (m). The authors start from a capture of two fencers
+    at fencing distance but give no number (notes won2021.md §5); 4 m is the distance between a
+    real piste's on-guard lines."""
     weights: Annotated[tuple[float, float, float], Min(0)] = (1.0, 0.2, 30.0)
     """ω of (match, close, penalty)."""
 
@@ -91,6 +107,7 @@ def _points(f: LinkFrames, bodies: jax.Array, offsets: jax.Array) -> tuple[jax.A
 class BoxingState:
     stuck_steps: jax.Array  # steps the players have been within stuck_distance
     rope_steps: jax.Array  # [2] steps each player has been near the ropes
+    hit_wait: jax.Array  # [2] steps before each player's scoring contacts count again (0: now)
 
 
 @struct.dataclass
@@ -163,12 +180,22 @@ class BoutTask(Task):
             out.append(jnp.min(jnp.linalg.norm(sp[:, None] - tp[None], axis=-1)))
         return jnp.stack(out)
 
+    def close_reward(self, frame: LinkFrames) -> jax.Array:
+        """[2] r_close = exp(-k d^2) or exp(-k d) (``close_squared``) of ``closeness``."""
+        c = self.sub
+        d = self.closeness(frame)
+        return jnp.exp(-c.close_k * (d**2 if c.close_squared else d))
+
     def markers(self, goal, frame: LinkFrames) -> dict[str, jax.Array]:
         return {}
 
 
 class Boxing(BoutTask):
-    """Boxing (paper Eqs. 1-5): damage difference, closeness, facing, energy, penalties."""
+    """Boxing (paper Eqs. 1-5): damage difference, closeness, facing, energy, penalties.
+
+    Damage is paid per hit, at its onset (the authors' ``touch_interval``): paying the clipped
+    force on every step of a contact would reward holding a glove on the opponent's chest as a
+    flurry of punches."""
 
     settings = (("boxing", BoxingConfig),)
 
@@ -187,17 +214,27 @@ class Boxing(BoutTask):
         return jnp.stack([mid - 0.5 * d * u, mid + 0.5 * d * u]), jnp.stack([a, a + jnp.pi])
 
     def init(self, rng, frame, start=None) -> BoxingState:
-        return BoxingState(stuck_steps=jnp.zeros((), jnp.int32), rope_steps=jnp.zeros((2,), jnp.int32))
+        zeros = jnp.zeros((2,), jnp.int32)
+        return BoxingState(stuck_steps=jnp.zeros((), jnp.int32), rope_steps=zeros, hit_wait=zeros)
 
     def observe(self, goal, frame, k) -> jax.Array:
         return self.interaction_obs(frame, k)
 
+    def hits(self, goal: BoxingState, forces: jax.Array) -> tuple[jax.Array, jax.Array]:
+        """(onset [2] bool, next ``hit_wait`` [2]): a player's scoring contact counts when its
+        wait is over; a counted hit makes it wait ``touch_interval`` (whole control steps: 15 at
+        30 Hz, so a held contact counts on steps 1, 16, 31, ...). Each player's wait is its own."""
+        window = int(round(self.sub.touch_interval / self.env.dt))
+        onset = (forces >= self.sub.touch_threshold) & (goal.hit_wait <= 0)
+        wait = jnp.where(onset, max(window - 1, 0), jnp.maximum(goal.hit_wait - 1, 0))
+        return onset, wait.astype(jnp.int32)
+
     def step(self, goal: BoxingState, prev, frame, forces, fell, qvel0, qvel, steps, rng) -> TaskStep:
         c, dt = self.sub, self.env.dt
-        dealt = jnp.where(forces >= c.touch_threshold, jnp.minimum(forces, c.damage_clip), 0.0)
+        onset, hit_wait = self.hits(goal, forces)
+        dealt = jnp.where(onset, jnp.minimum(forces, c.damage_clip), 0.0)
         match = dealt - dealt[::-1]
-        d = self.closeness(frame)
-        close = jnp.exp(-c.close_k * (d**2 if c.close_squared else d))
+        close = self.close_reward(frame)
         root = frame.pos[:, 0, :2]
         to_op = root[::-1] - root
         dist = jnp.linalg.norm(to_op, axis=-1)
@@ -219,7 +256,8 @@ class Boxing(BoutTask):
         info = {
             "damage_dealt": dealt,
             "damage_received": dealt[::-1],
-            "hit": dealt > 0,
+            "hit": onset,
+            "contact": forces >= c.touch_threshold,
             "close": close,
             "distance": dist,
             "fall": fell,
@@ -227,7 +265,7 @@ class Boxing(BoutTask):
             "ropes": roped,
         }
         return TaskStep(
-            goal=BoxingState(stuck_steps=stuck_steps, rope_steps=rope_steps),
+            goal=BoxingState(stuck_steps=stuck_steps, rope_steps=rope_steps, hit_wait=hit_wait),
             rewards=rewards,
             terminated=penalised,
             info=info,
@@ -284,8 +322,7 @@ class Fencing(BoutTask):
         c = self.sub
         touch = forces >= c.touch_threshold
         new, ended, win = self.rules(goal, touch, steps)
-        d = self.closeness(frame)
-        close = jnp.exp(-c.close_k * d**2)
+        close = self.close_reward(frame)
         root = frame.pos[:, 0, :2]
         out = (jnp.abs(root[:, 0]) > c.piste[0] / 2) | (jnp.abs(root[:, 1]) > c.piste[1] / 2)
         penalised = fell | out
