@@ -186,6 +186,31 @@ def test_load_run_falls_back_and_a_run_with_no_intact_checkpoint_is_one_line(bas
     _one_line_error(capsys.readouterr().err)
 
 
+def test_a_run_loads_after_its_scene_state_gained_a_field(base, tmp_path, monkeypatch):
+    """``load_run`` (eval, composers, meta policies) restores networks and statistics, not the
+    environments' state: a task whose goal state gained a timer (boxing's hit interval did) still
+    loads the runs trained before it, with the checkpoint's parameters."""
+    run = _copy(base, tmp_path / "run")
+    real = runs_mod.make_learner
+
+    def grown(cfg, env=None):
+        learner = real(cfg, env) if env is not None else real(cfg)
+        init = learner.init
+
+        def init_with_timer(rng):
+            ts = init(rng)
+            return ts.replace(env_state=ts.env_state.replace(goal={"timer": jnp.zeros((4,), jnp.int32)}))
+
+        monkeypatch.setattr(learner, "init", init_with_timer)
+        return learner
+
+    monkeypatch.setattr(runs_mod, "make_learner", grown)
+    with jit_enabled():
+        _, _, _, ts = load_run(run)
+    assert int(ts.iteration) == 3
+    assert set(ts.env_state.goal) == {"timer"}
+
+
 @pytest.mark.slow
 def test_resume_past_a_half_written_metrics_line(base, tmp_path):
     run = _copy(base, tmp_path / "run")

@@ -97,14 +97,18 @@ def final_stage(run_dir: Path) -> Path:
 def load_run(run_dir: Path) -> tuple[str, TrainConfig, Learner, TrainState]:
     """(experiment, config, learner, restored state) of a run folder (a progressive pipeline's:
     its last finished stage): its newest checkpoint that can be read (a line on stderr per
-    damaged newer one); clips from ``$JAXMOTION_DATA``, else the data folder the run recorded.
-    A ``RunFolderError`` if the folder is no usable run."""
+    damaged newer one), the environments' state left as initialised; clips from
+    ``$JAXMOTION_DATA``, else the data folder the run recorded. A ``RunFolderError`` if the
+    folder is no usable run."""
     run_dir = final_stage(Path(run_dir))
     experiment, cfg = ckpt.read_config(run_dir, TrainConfig)
     use_recorded_data(run_dir)
     learner = make_learner(cfg)
     like = learner.init(jax.random.PRNGKey(cfg.seed))
-    ts, _ = ckpt.restore_run(run_dir, like)
+    # What an evaluation, a composer or a meta policy uses is the networks and their statistics:
+    # the environments' state is left as initialised, so a scene whose state gained a field (a
+    # task's timer) still loads the runs it trained before.
+    ts, _ = ckpt.restore_run(run_dir, like, skip=ckpt.PER_ENV)
     return experiment, cfg, learner, ts
 
 
