@@ -114,6 +114,28 @@ def test_a_killed_pipeline_resumes_at_the_stage_it_was_in(tmp_path, monkeypatch)
     assert again.calls[1][1].primitives == (str(root / "primitive_1"), str(root / "primitive_2"))
 
 
+def test_the_recovery_primitive_comes_after_the_imitation_ones_and_joins_the_composer(tmp_path, monkeypatch):
+    """PHC's order: imitation primitives with recovery off, the recovery primitive from the last
+    of them on its own clips with recovery on, then a composer over all with recovery on."""
+    monkeypatch.chdir(tmp_path)
+    on = lambda c: c.env.task.track.recovery.enabled
+    cfg = P.with_recovery(
+        _base(primitives=2, stage_iterations=600, recovery_iterations=200, recovery_clips=("a.txt",)), True
+    )
+    rec = Recorder(fails=[("b.txt",), ("b.txt",), (), ()], rates=[[0.75], [0.75], [0.5], [0.75]])
+    root = P.run_pipeline("track/pmcp_small", cfg, rec, say=lambda s: None)
+    assert [n for n, _ in rec.calls] == ["primitive_1", "primitive_2", "recovery", "composer"]
+    p1, p2, recov, comp = (c for _, c in rec.calls)
+    assert not on(p1) and not on(p2) and on(recov) and on(comp)
+    assert recov.env.init_motions == ("a.txt",) and recov.init_from == str(root / "primitive_2")
+    assert recov.iterations == 1200 + 200  # counted from where primitive 2 ended
+    assert comp.primitives == tuple(str(root / n) for n in ("primitive_1", "primitive_2", "recovery"))
+    assert json.loads((root / "pipeline.json").read_text())["stages"]["recovery"]["status"] == "done"
+    again = Recorder(fails=[], rates=[])
+    P.run_pipeline("track/pmcp_small", dataclasses.replace(cfg, resume=str(root)), again, say=lambda s: None)
+    assert again.calls == []  # every stage done: nothing is trained again
+
+
 def test_a_pipeline_needs_mining_and_whole_chunks():
     cfg = _base(primitives=2, stage_iterations=605)
     with pytest.raises(C.ConfigError, match="progressive.stage_iterations"):

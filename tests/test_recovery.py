@@ -202,3 +202,27 @@ def test_recovery_trials_report_every_scenario(data_dir, monkeypatch, tmp_path, 
     assert 0.3 < s["fallen"]["start_error_m"] < 1.5
     assert all(0.0 <= v["succ_5s"] <= v["succ_10s"] <= 1.0 for v in s.values())
     assert "Succ-10s" in capsys.readouterr().out
+
+
+def test_the_tracking_evaluation_of_a_recovery_tracker_starts_every_clip_from_its_first_frame():
+    """Mining and ``eval`` follow the protocol (every clip from t = 0, the reference state): a
+    tracker trained with recovery keeps its goal features there but not its training starts."""
+    from jaxmotion.evaluation.tracking import eval_env
+    from test_track import tiny_tracker
+
+    learner = tiny_tracker(MotionLib.from_clips([_moving_clip()]))
+    rc = RC.RecoveryConfig(enabled=True, fall_prob=1.0, far_prob=1.0, pool_size=2)
+    cfg = learner.cfg.env
+    track = dataclasses.replace(cfg.task.track, recovery=rc)
+    learner.cfg = dataclasses.replace(
+        learner.cfg, env=dataclasses.replace(cfg, task=dataclasses.replace(cfg.task, track=track))
+    )
+    env = eval_env(learner)
+    assert env.task.cfg.track.recovery.enabled and env.task.cfg.track.recovery.point_goal
+    with jit_enabled():
+        state, _ = jax.jit(env.reset_at)(jax.random.PRNGKey(0), jnp.int32(0), jnp.float32(0.0))
+        ref = jax.jit(lambda g: env.task.reference(g, 0.0))(state.goal)
+    assert int(state.goal.rec.grace) == 0
+    # The root where the reference's is: not lying on the ground, not moved away (the joints may
+    # differ by the scene's start clamping to the joint ranges).
+    np.testing.assert_allclose(state.hist.pos[-1][0], ref.pos[0], atol=1e-5)

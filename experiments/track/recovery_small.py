@@ -1,20 +1,21 @@
-"""Fail-state recovery in miniature, sized for a 2-core CPU: `track/small`'s walk and run and
-DeepMimic's face-down get-up, tracked with the recovery starts, point goal and recovery episodes
-of ``tasks/recovery.py`` (the authors' settings). Start it from a trained tracker
+"""Fail-state recovery in miniature, sized for a 2-core CPU: the four LAFAN1 walks (35-55 s
+each: a far start needs a reference that lasts while the character catches up, as the authors'
+locomotion clips do), DeepMimic's walk and face-down get-up, tracked with the recovery starts,
+point goal and recovery episodes of ``tasks/recovery.py`` (the authors' settings). Start it from a trained tracker
 (``init_from=<a track/small run>``); evaluate with ``python -m jaxmotion.eval RUN --recovery``.
 Results: docs/results.md, "Recovery on a CPU".
 """
 
 import dataclasses
 
-from _common import track
+from _common import WALK, track
 
 from jaxmotion.tasks.recovery import RecoveryConfig
 
 
 def config():
     cfg = track(
-        ("deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_run.txt", "deepmimic/humanoid3d_getup_facedown.txt"),
+        (*WALK, "deepmimic/humanoid3d_walk.txt", "deepmimic/humanoid3d_getup_facedown.txt"),
         iterations=3000,
     )
     track_cfg = dataclasses.replace(cfg.env.task.track, recovery=RecoveryConfig(enabled=True))

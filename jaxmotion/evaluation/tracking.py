@@ -44,9 +44,11 @@ def eval_env(learner, lib: MotionLib | None = None) -> HumanoidEnv:
     cfg = learner.cfg.env
     lib = learner.env.init_lib if lib is None else lib
     longest = int(np.max(np.asarray(lib.clip_len)))
-    task = dataclasses.replace(
-        cfg.task, track=dataclasses.replace(cfg.task.track, termination="mean", termination_distance=FAIL_MEAN_M)
-    )
+    # A tracker trained with recovery keeps its goal features; its fallen and far starts and
+    # recovery episodes are training's, not the protocol's (every clip from its first frame).
+    rec = dataclasses.replace(cfg.task.track.recovery, fall_prob=0.0, far_prob=0.0, recovery_prob=0.0)
+    track = dataclasses.replace(cfg.task.track, termination="mean", termination_distance=FAIL_MEAN_M, recovery=rec)
+    task = dataclasses.replace(cfg.task, track=track)
     cfg = dataclasses.replace(cfg, task=task, early_termination=False, episode_steps=longest + 1)
     return HumanoidEnv(cfg, motion_libs=learner.env.motion_libs, init_lib=lib, physics=learner.env.physics)
 

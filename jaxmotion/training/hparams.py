@@ -147,6 +147,13 @@ class ProgressiveConfig:
     """A primitive is frozen after this many mining passes without a rise in its success rate."""
     composer_iterations: Annotated[int, Min(0)] = 2000
     """Iterations of the composer over the primitives (0: no composer)."""
+    recovery_iterations: Annotated[int, Min(0)] = 0
+    """Iterations of the fail-state recovery primitive (PHC's P(F), ``tasks/recovery.py``), from
+    the last imitation primitive, before the composer; 0: none. The imitation primitives train
+    with ``env.task.track.recovery`` off; the recovery primitive and the composer with it on
+    (the experiment's recovery settings otherwise)."""
+    recovery_clips: tuple[str, ...] = ()
+    """The recovery primitive's clips (the authors: their locomotion subset); empty: every clip."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -346,7 +353,9 @@ def progressive_problems(cfg: TrainConfig, scene: Scene | None = None) -> Iterat
             "progressive.primitives",
             "needs hard-negative mining (hard_negatives_every > 0): it finds each stage's clips",
         )
-    for key in ("stage_iterations", "composer_iterations"):
+    if pc.recovery_iterations and cfg.env.task.name != "track":
+        yield Problem("progressive.recovery_iterations", "a recovery primitive is a tracker's (env.task.name=track)")
+    for key in ("stage_iterations", "composer_iterations", "recovery_iterations"):
         if getattr(pc, key) % cfg.chunk:
             yield Problem(f"progressive.{key}", f"must be a multiple of chunk ({cfg.chunk})")
     if cfg.primitives or cfg.meta:

@@ -6,8 +6,14 @@
 2. ``primitive_k/`` (k = 2..K): starts from ``primitive_{k-1}``'s latest checkpoint (policy,
    critic, discriminator, statistics: "kept and fine-tuned, never reinitialised") and trains on
    the clips that primitive failed in its last mining passes; no stage when none failed;
-3. ``composer/``: a composer (``nets/composer.py``) over the frozen primitives on all the clips,
-   PPO training only the composer.
+3. ``recovery/`` (with ``progressive.recovery_iterations``): the fail-state recovery primitive
+   (``tasks/recovery.py``), from the last primitive, on ``progressive.recovery_clips``;
+4. ``composer/``: a composer (``nets/composer.py``) over the frozen primitives (the recovery one
+   included) on all the clips, PPO training only the composer; with a recovery primitive the
+   composer trains with fallen and far starts and recovery episodes too (PHC §3.2).
+
+The imitation primitives train with the experiment's recovery settings off, the recovery
+primitive and the composer with them on.
 
 A primitive stage ends ("is frozen") when its success rate on its own clips, measured by the
 run's hard-negative mining passes (``evaluation.tracking.MINING``: every clip once from t = 0),
@@ -83,17 +89,24 @@ def latest_step(run_dir: Path) -> int:
     return max(steps, default=0)
 
 
-def primitive_config(base: TrainConfig, clips: Sequence[str], init_from: str, start: int) -> TrainConfig:
-    """A primitive stage: ``base`` starting its episodes on ``clips``, from ``init_from`` (empty:
-    from scratch), for ``base.progressive.stage_iterations`` iterations after ``start``."""
-    env = dataclasses.replace(base.env, init_motions=tuple(clips))
+def with_recovery(cfg: TrainConfig, on: bool) -> TrainConfig:
+    """``cfg`` with the tracker's fail-state recovery (``env.task.track.recovery``) on or off."""
+    track = cfg.env.task.track
+    track = dataclasses.replace(track, recovery=dataclasses.replace(track.recovery, enabled=on))
     return dataclasses.replace(
-        base,
-        env=env,
-        init_from=init_from,
-        resume="",
-        iterations=start + base.progressive.stage_iterations,
-        progressive=ProgressiveConfig(),
+        cfg, env=dataclasses.replace(cfg.env, task=dataclasses.replace(cfg.env.task, track=track))
+    )
+
+
+def primitive_config(
+    base: TrainConfig, clips: Sequence[str], init_from: str, start: int, iterations: int | None = None
+) -> TrainConfig:
+    """A primitive stage: ``base`` starting its episodes on ``clips``, from ``init_from`` (empty:
+    from scratch), for ``iterations`` (default ``base.progressive.stage_iterations``) after ``start``."""
+    env = dataclasses.replace(base.env, init_motions=tuple(clips))
+    n = base.progressive.stage_iterations if iterations is None else iterations
+    return dataclasses.replace(
+        base, env=env, init_from=init_from, resume="", iterations=start + n, progressive=ProgressiveConfig()
     )
 
 
@@ -133,6 +146,8 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
         ckpt.write_config(root, experiment, cfg)
     state = _read_state(root)
     base = dataclasses.replace(cfg, resume="", init_from="")
+    recovering = pc.recovery_iterations > 0
+    plain = with_recovery(base, False) if base.env.task.name == "track" else base
     clips, prev = list(cfg.env.init_motions), cfg.init_from
     done: list[str] = []
     for k in range(1, pc.primitives + 1):
@@ -148,7 +163,11 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
             _write_state(root, state)
         if rec["status"] != "done":
             _train_stage(
-                experiment, root / name, primitive_config(base, rec["clips"], rec["init_from"], rec["start"]), train, pc
+                experiment,
+                root / name,
+                primitive_config(plain, rec["clips"], rec["init_from"], rec["start"]),
+                train,
+                pc,
             )
             rec.update(_outcome(root / name, pc.patience + 1))
             rec["status"] = "done"
@@ -157,11 +176,29 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
             say(f"{name}: {_summary(rec)}")
         done.append(str(root / name))
         prev, clips = str(root / name), rec["failed"]
+    if recovering and done:
+        rec = state["stages"].get("recovery")
+        if rec is None:
+            clips = list(pc.recovery_clips or cfg.env.init_motions)
+            rec = {"clips": clips, "init_from": done[-1], "start": latest_step(done[-1]), "status": "running"}
+            state["stages"]["recovery"] = rec
+            _write_state(root, state)
+        if rec["status"] != "done":
+            stage = primitive_config(
+                with_recovery(base, True), rec["clips"], rec["init_from"], rec["start"], pc.recovery_iterations
+            )
+            _train_stage(experiment, root / "recovery", stage, train, pc, plateau=False)
+            rec.update({"end": latest_step(root / "recovery"), "status": "done"})
+            state["final"] = "recovery"
+            _write_state(root, state)
+            say(f"recovery: to iteration {rec['end']}")
+        done.append(str(root / "recovery"))
     if pc.composer_iterations and len(done) >= 2:
         rec = state["stages"].setdefault("composer", {"primitives": done, "status": "running"})
         if rec["status"] != "done":
             _write_state(root, state)
-            _train_stage(experiment, root / "composer", composer_config(base, rec["primitives"]), train, pc)
+            stage = composer_config(with_recovery(base, True) if recovering else plain, rec["primitives"])
+            _train_stage(experiment, root / "composer", stage, train, pc)
             rec.update(_outcome(root / "composer", pc.patience + 1))
             rec["status"] = "done"
             state["final"] = "composer"
@@ -170,12 +207,14 @@ def run_pipeline(experiment: str, cfg: TrainConfig, train: Callable, say: Callab
     return root
 
 
-def _train_stage(experiment: str, run_dir: Path, cfg: TrainConfig, train: Callable, pc: ProgressiveConfig) -> None:
-    """Trains (or resumes, if it has a checkpoint) one stage until it ends or plateaus (judged
-    after the chunks that ran a mining pass, from the stage's log)."""
+def _train_stage(
+    experiment: str, run_dir: Path, cfg: TrainConfig, train: Callable, pc: ProgressiveConfig, plateau: bool = True
+) -> None:
+    """Trains (or resumes, if it has a checkpoint) one stage until it ends or, with ``plateau``,
+    plateaus (judged after the chunks that ran a mining pass, from the stage's log)."""
 
     def until(end) -> bool:
-        return "mining/success_rate" in end.last and plateaued(mining_rates(run_dir), pc.patience)
+        return plateau and "mining/success_rate" in end.last and plateaued(mining_rates(run_dir), pc.patience)
 
     if ckpt.has_checkpoint(run_dir):
         train(experiment, dataclasses.replace(cfg, resume=str(run_dir), init_from=""), until=until)
