@@ -8,7 +8,7 @@ ended by a fall within a second (`boxing/selfplay`). Same ring, rules, ω and PP
 
 Train the imitation policy first (`make train EXP=imitate/boxing`); `meta` takes its newest run,
 or name one: `make train EXP=boxing/selfplay_meta ARGS="meta=runs/imitate/boxing/<stamp>"`.
-Results: docs/results.md, "Boxing on an imitation policy".
+Results: docs/sports.md, "Boxing on an imitation policy".
 """
 
 import dataclasses

@@ -2,7 +2,7 @@
 sword-and-shield ones without their props, minus the 15 of the development split
 `_common.TRACK_DEV`: 80 clips, 598 s; the rotation goal (15 x 24 goal features). Evaluate on the
 held-out clips with `python -m jaxmotion.eval <run> --clips <dev clip paths>`.
-Results: docs/results.md, "All clips on a GPU".
+Results: docs/tracker.md, "All clips on a GPU".
 """
 
 from _common import TRACK_TRAIN, track

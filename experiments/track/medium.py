@@ -2,7 +2,7 @@
 and a jumping jack; 17 s of motion), resets picking clips uniformly: the CPU-sized step between
 ``track/small``'s three clips and ``track/all``'s 80. Evaluate on its own clips with
 ``python -m jaxmotion.eval <run>`` and on clips it never saw with ``--clips``.
-Results: docs/results.md, "Ten clips on a CPU".
+Results: docs/tracker.md, "Ten clips on a CPU".
 """
 
 from _common import track

@@ -2,7 +2,7 @@
 (walk, run, punch), two primitives (the second on the clips the first fails), each frozen after
 2 mining passes (every 100 iterations) without a rise or 600 iterations, then a composer over
 both for 300 iterations. `init_from=<a track/small run>` starts primitive 1 from a trained
-tracker. Results: docs/results.md, "Progressive primitives on a CPU".
+tracker. Results: docs/tracker.md, "Progressive primitives on a CPU".
 """
 
 import dataclasses

@@ -3,7 +3,7 @@ each: a far start needs a reference that lasts while the character catches up, a
 locomotion clips do), DeepMimic's walk and face-down get-up, tracked with the recovery starts,
 point goal and recovery episodes of ``tasks/recovery.py`` (the authors' settings). Start it from a trained tracker
 (``init_from=<a track/small run>``); evaluate with ``python -m jaxmotion.eval RUN --recovery``.
-Results: docs/results.md, "Recovery on a CPU".
+Results: docs/tracker.md, "Recovery on a CPU".
 """
 
 import dataclasses

@@ -1,6 +1,6 @@
 """A tracker of three short DeepMimic clips (walk, run, punch): the CPU-sized demonstration that
 tracking is learned (success and g-MPJPE against the same seeds untrained, `eval --untrained`).
-Results: docs/results.md, "Three clips on a CPU".
+Results: docs/tracker.md, "Three clips on a CPU".
 """
 
 from _common import track
