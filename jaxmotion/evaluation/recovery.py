@@ -110,22 +110,31 @@ def trial_env(learner, lib: MotionLib, fall: float, far: float, trials: int, see
     return HumanoidEnv(cfg, motion_libs=learner.env.motion_libs, init_lib=lib, physics=learner.env.physics)
 
 
-def _trial_program(learner, env: HumanoidEnv, trials: int, steps: int):
+def _trial_program(learner, envs: dict[str, HumanoidEnv], trials: int, steps: int):
+    """One compiled program for every scenario: each scenario's scene makes its trials' starts,
+    one scene steps them all (the scenarios differ only in how they start, and nothing resets
+    during a trial). Returns ``run(ts, key) -> (err [T, S * N], qpos of each scenario's first trial)``."""
+    stepper = next(iter(envs.values()))
+
     @jax.jit
     def run(ts, key):
-        keys = jax.random.split(key, trials)
-        state, obs = jax.vmap(env.reset_at)(keys, jnp.zeros(trials, jnp.int32), jnp.zeros(trials))
+        starts = []
+        for i, env in enumerate(envs.values()):
+            keys = jax.random.split(jax.random.fold_in(key, i), trials)
+            starts.append(jax.vmap(env.reset_at)(keys, jnp.zeros(trials, jnp.int32), jnp.zeros(trials)))
+        state, obs = jax.tree.map(lambda *x: jnp.concatenate(x), *starts)
         # Fallen starts freeze the clock; far ones would let it run: the reference stands still anyway.
-        state = state.replace(goal=state.goal.replace(rec=state.goal.rec.replace(frozen=jnp.ones(trials, bool))))
+        n = obs.shape[0]
+        state = state.replace(goal=state.goal.replace(rec=state.goal.rec.replace(frozen=jnp.ones(n, bool))))
 
         def step(carry, _):
             state, obs = carry
             action = learner.act(ts, obs, None)[0]
-            state, out = jax.vmap(env.step)(state, action)
-            return (state, out.obs), (out.info["body_error_m"], state.data.qpos)
+            state, out = jax.vmap(stepper.step)(state, action)
+            return (state, out.obs), (out.info["body_error_m"], state.data.qpos[::trials])
 
         _, (err, qpos) = jax.lax.scan(step, (state, obs), None, length=steps)
-        return err, qpos, state.data.qpos
+        return err, qpos
 
     return run
 
@@ -152,25 +161,27 @@ def evaluate_recovery(learner, ts, trials: int = 100, seed: int = 0, pose: str |
     dt = learner.env.dt
     hold = int(round(HOLD_SECONDS / dt))
     steps = int(round((TRIAL_SECONDS + HOLD_SECONDS) / dt))
-    res, first = {"trials": trials, "pose": str(pose), "hold_s": HOLD_SECONDS, "scenarios": {}}, {}
-    for name, (fall, far) in SCENARIOS.items():
+    res = {"trials": trials, "pose": str(pose), "hold_s": HOLD_SECONDS, "scenarios": {}}
 
-        def build(fall=fall, far=far):
-            env = trial_env(learner, lib, fall, far, trials, seed)
-            return env, _trial_program(learner, env, trials, steps)
+    def build():
+        envs = {name: trial_env(learner, lib, fall, far, trials, seed) for name, (fall, far) in SCENARIOS.items()}
+        return envs, _trial_program(learner, envs, trials, steps)
 
-        env, run = program(learner, "recovery", (name, trials, seed, str(pose)), build)
-        err, qpos, _ = jax.device_get(run(ts, jax.random.PRNGKey(seed)))
-        times = recovery_times(np.asarray(err), dt, hold)
+    _, run = program(learner, "recovery", (trials, seed, str(pose), steps), build)
+    err, qpos = (np.asarray(x) for x in jax.device_get(run(ts, jax.random.PRNGKey(seed))))
+    ref = _held_qpos(lib)
+    first = {}
+    for i, name in enumerate(SCENARIOS):
+        e = err[:, i * trials : (i + 1) * trials]
+        times = recovery_times(e, dt, hold)
         done = times[np.isfinite(times)]
         res["scenarios"][name] = {
             "succ_5s": float(np.mean(times <= 5.0)),
             "succ_10s": float(np.mean(times <= 10.0)),
             "median_time_s": float(np.median(done)) if done.size else float("nan"),
-            "start_error_m": float(np.mean(err[0])),
+            "start_error_m": float(np.mean(e[0])),
         }
-        ref = _held_qpos(lib)
-        first[name] = (np.asarray(qpos[:, 0]), np.broadcast_to(ref, (qpos.shape[0], ref.shape[-1])))
+        first[name] = (qpos[:, i], np.broadcast_to(ref, (qpos.shape[0], ref.shape[-1])))
     return res, first
 
 
