@@ -231,27 +231,12 @@ def track(
 ) -> TrainConfig:
     """A tracker of ``clips`` (PHC's imitation reward + a 10-frame full-body motion prior, ω 0.5 /
     0.5; reference-state init at random times; no contact termination, the distance rule instead;
-    a fixed σ = e^-2.9 as the authors'; hard-negative mining every 2M samples), sized for a CPU
-    (256-256 networks; the paper's are 1024-512-256). The servo is the default one, its damping
-    inside the clipped actuator (``PhysicsConfig.servo_damping='actuator'``): joint damping caps a
-    joint at limit/kd, 2.5-4.2 rad/s, below the clips' speeds (docs/physics.md). On
-    ``track/small``, seed 0, 1000 iterations (4.1M samples): 2/3 clips tracked either way,
-    g-MPJPE 83 mm against 109 mm with joint damping, terminations 1.5% of steps in the last 100
-    iterations against 1.9%.
-
-    Departure from the authors' code: the PD target is the reference's next-frame joint angles +
-    the action (``track.residual``; ``env.task.track.residual=false`` for the code's mid-range +
-    action). On ``track/small``, same seed, at 560-610 iterations (2.3-2.5M samples): terminations
-    3.3% of steps against 4.4%, training body error 0.080 m against 0.096 m.
-
-    The actor's learning rate is the authors' 2e-5 (the composite-motion default is 5e-6). On
-    ``track/small``, seed 0, 1000 iterations (4.1M samples): terminations 1.9% of steps in the
-    last 100 iterations against 3.1% at 5e-6 (at 800), and walk and punch tracked from t = 0
-    (2/3, g-MPJPE 109 mm), which 5e-6 reached only at 12.3M samples (PPO's KL per update 0.087
-    against 0.013). Not the limiters, measured at 800 iterations, 5e-6: the energy penalty
-    (``env.task.track.energy_coef=0``: terminations 3.1% -> 3.1%, 1/3 tracked either way) and
-    the motion prior (``ppo.objective_weights=0,1``: 3.1% -> 3.1%, 1/3); γ 0.99 (the code's)
-    instead of 0.95 was worse (1000 iterations: 3.6% at 5e-6, 3.2% at 2e-5; 1/3 each)."""
+    a fixed σ = e^-2.9 and the actor's learning rate 2e-5, as the authors'; hard-negative mining
+    every 2M samples), sized for a CPU (256-256 networks; the paper's are 1024-512-256). The
+    servo is the default one, its damping inside the clipped actuator: joint damping caps a joint
+    below the clips' speeds (docs/physics.md). Departure from the authors' code: the PD target
+    is the reference's next-frame joint angles + the action (``track.residual``). The
+    measurements behind these choices: docs/tracker.md, "Three clips on a CPU"."""
     from jaxmotion.tasks import TrackConfig
 
     env = EnvConfig(
