@@ -314,6 +314,22 @@ class HumanoidEnv:
     def reset_at(self, rng: jax.Array, clip: jax.Array, t: jax.Array) -> tuple[EnvState, jax.Array]:
         """Reference-state initialisation at time ``t`` (s) of init clip ``clip``."""
         rng, k_goal = jax.random.split(rng)
+        qpos_h, qvel_h, start = self.start_window(k_goal, clip, t)
+        data = self._data0.replace(
+            qpos=self._data0.qpos.at[: self._nq].set(qpos_h[-1]), qvel=self._data0.qvel.at[: self._nv].set(qvel_h[-1])
+        )
+        # The history is what the simulator's kinematics make of the reference poses, so the first
+        # windows after a reset are built exactly like every later one.
+        hist = self.frames_of(qpos_h, qvel_h)
+        goal = self.task.init(k_goal, _last(hist), start)
+        data = self.place_props(data, goal)
+        state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng, goal=goal)
+        return state, self.policy_obs(state)
+
+    def start_window(self, k_goal: jax.Array, clip: jax.Array, t: jax.Array) -> tuple[jax.Array, jax.Array, tuple]:
+        """(qpos [H, nq], qvel [H, nv], the task's start) of ``reset_at``'s start: the reference
+        window ending at time ``t`` of init clip ``clip`` as the character starts it (oldest first;
+        ``k_goal``: the reset's goal key). An exported policy starts from its last frames."""
         times = t - self.dt * jnp.arange(self.hist_len - 1, -1, -1, dtype=jnp.float32)
         ms = sample(self.init_lib, jnp.full_like(times, clip, dtype=jnp.int32), times)
         qpos_h, qvel_h = qpos_qvel(ms)
@@ -328,17 +344,7 @@ class HumanoidEnv:
             qpos_h = qpos_h.at[..., 2].add(lift)
         # The task may move or replace the start (the tracker's fallen and far starts); its key is
         # derived from the goal's so that tasks that leave the start alone draw what they always did.
-        qpos_h, qvel_h, start = self.task.start_pose(jax.random.fold_in(k_goal, 1), qpos_h, qvel_h, (clip, t))
-        data = self._data0.replace(
-            qpos=self._data0.qpos.at[: self._nq].set(qpos_h[-1]), qvel=self._data0.qvel.at[: self._nv].set(qvel_h[-1])
-        )
-        # The history is what the simulator's kinematics make of the reference poses, so the first
-        # windows after a reset are built exactly like every later one.
-        hist = self.frames_of(qpos_h, qvel_h)
-        goal = self.task.init(k_goal, _last(hist), start)
-        data = self.place_props(data, goal)
-        state = EnvState(data=data, hist=hist, steps=jnp.zeros((), jnp.int32), rng=rng, goal=goal)
-        return state, self.policy_obs(state)
+        return self.task.start_pose(jax.random.fold_in(k_goal, 1), qpos_h, qvel_h, (clip, t))
 
     # ---- observations ------------------------------------------------------------------
     def policy_obs(self, state: EnvState) -> jax.Array:

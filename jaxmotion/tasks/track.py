@@ -125,8 +125,12 @@ class Track(Task):
 
     def reference(self, goal: TrackGoal, dt_ahead: float) -> O.LinkFrames:
         """The tracked clip's link frames ``dt_ahead`` seconds of its clock after the current frame."""
-        ms = sample(self.env.init_lib, goal.clip, goal.time + self.ahead(goal, dt_ahead))
-        return self.env.frames_of(*qpos_qvel(ms))
+        return self.env.frames_of(*self.reference_coords(goal, dt_ahead))
+
+    def reference_coords(self, goal: TrackGoal, dt_ahead: float) -> tuple[jax.Array, jax.Array]:
+        """(qpos [nq], qvel [nv]) of the tracked clip ``dt_ahead`` seconds of its clock after the
+        current frame: what ``reference`` makes link frames of."""
+        return qpos_qvel(sample(self.env.init_lib, goal.clip, goal.time + self.ahead(goal, dt_ahead)))
 
     def pd_base(self, goal: TrackGoal) -> jax.Array | None:
         """With ``residual``: the reference's joint angles one control step ahead, within limits."""
@@ -156,7 +160,11 @@ class Track(Task):
         return goal.replace(rec=RC.RecoveryState(grace=grace, frozen=frozen, dist=dist))
 
     def observe(self, goal: TrackGoal, frame: O.LinkFrames) -> jax.Array:
-        ref = self.reference(goal, self.env.dt)
+        return self.features(self.reference(goal, self.env.dt), frame)
+
+    def features(self, ref: O.LinkFrames, frame: O.LinkFrames) -> jax.Array:
+        """The goal features of the reference's next frame ``ref`` seen from the simulated ``frame``
+        (the exported policies compute them from a reference given as generalised coordinates)."""
         if self.recovering and self.cfg.track.recovery.point_goal:
             ref = RC.far_goal(ref, frame, self.cfg.track.recovery)
         _, inv = O.heading_frame(frame.pos[0], frame.quat[0])
