@@ -208,6 +208,10 @@ def add_arguments(g: argparse._ArgumentGroup) -> None:
     )
 
 
+def _seconds(t: float) -> str:
+    return f"{t:.2f}s" if np.isfinite(t) else "-"
+
+
 def run(args, experiment: str, cfg, learner, ts) -> int:
     """``--recovery``: print and write the scenarios' success rates."""
     from jaxmotion.viz.render import iter_frames, learner_group_colors, write_video
@@ -219,7 +223,7 @@ def run(args, experiment: str, cfg, learner, ts) -> int:
     for name, s in res["scenarios"].items():
         print(
             f"  {name:<12} {100 * s['succ_5s']:>7.1f}% {100 * s['succ_10s']:>8.1f}% "
-            f"{s['median_time_s']:>7.2f}s {s['start_error_m']:>11.2f}m"
+            f"{_seconds(s['median_time_s']):>8} {s['start_error_m']:>11.2f}m"
         )
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
