@@ -15,7 +15,7 @@ from pathlib import Path
 
 import jax
 
-from jaxmotion.config.checks import Min, show
+from jaxmotion.config.checks import Min, check_output, show
 from jaxmotion.config.errors import ConfigError, cli_errors
 from jaxmotion.evaluation import EVALUATORS, evaluator_of
 from jaxmotion.training.runs import load_run
@@ -77,25 +77,6 @@ def check_args(args: argparse.Namespace) -> None:
     for name in OUTPUTS:
         if getattr(args, name) is not None:
             check_output(f"--{name}", getattr(args, name))
-
-
-def check_output(flag: str, path: Path) -> None:
-    """``path`` can be written: not a folder, its folder made, a file opened there for writing
-    (and removed again if it was not there)."""
-    if path.is_dir():
-        raise ConfigError(f"{flag}={path}: is a folder, not a file")
-    above = next((p for p in path.parents if p.exists()), None)
-    if above is not None and not above.is_dir():
-        raise ConfigError(f"{flag}={path}: {above} is a file, not a folder")
-    existed = path.exists()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "a"):
-            pass
-    except OSError as e:
-        raise ConfigError(f"{flag}={path}: cannot be written ({e.strerror or e})") from None
-    if not existed:
-        path.unlink()
 
 
 @cli_errors

@@ -13,9 +13,23 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "jaxmotion"
 
-LAYERS = ("config", "physics", "motion", "tasks", "envs", "nets", "algos", "training", "viz", "evaluation", "")
+LAYERS = (
+    "config",
+    "physics",
+    "motion",
+    "tasks",
+    "envs",
+    "nets",
+    "algos",
+    "training",
+    "viz",
+    "evaluation",
+    "export",
+    "",
+)
 """Bottom to top; a module may import its own layer and the layers below it. "" is the entry
-points at the top of the package (train, eval, bench, plot, play)."""
+points at the top of the package (train, eval, bench, plot, play); ``export`` is the policy
+exporter's entry point with its pieces."""
 
 
 def module_name(path: Path) -> str:

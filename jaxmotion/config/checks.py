@@ -384,3 +384,22 @@ def size(n: float) -> str:
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
         n /= 1000
     return f"{n:.1f} PB"  # pragma: no cover - the loop always returns
+
+
+def check_output(flag: str, path: pathlib.Path) -> None:
+    """``path`` can be written: not a folder, its folder made, a file opened there for writing
+    (and removed again if it was not there)."""
+    if path.is_dir():
+        raise ConfigError(f"{flag}={path}: is a folder, not a file")
+    above = next((p for p in path.parents if p.exists()), None)
+    if above is not None and not above.is_dir():
+        raise ConfigError(f"{flag}={path}: {above} is a file, not a folder")
+    existed = path.exists()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "a"):
+            pass
+    except OSError as e:
+        raise ConfigError(f"{flag}={path}: cannot be written ({e.strerror or e})") from None
+    if not existed:
+        path.unlink()

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxmotion.config.errors import ConfigError, cli_errors
-from jaxmotion.eval import check_output
+from jaxmotion.config.checks import check_output
 from jaxmotion.export import formats
 from jaxmotion.export import policy as P
 from jaxmotion.training import checkpoint as ckpt
