@@ -51,6 +51,8 @@ def test_fencing_closeness_is_visible_at_the_default_start():
     np.testing.assert_allclose(close, np.exp(-3.0 * d), rtol=1e-3)
     np.testing.assert_allclose(np.asarray(out.rewards[:, 1]), close)
     assert np.all(close > 2e-5), close
+    # The players' root distance is logged (task/distance), so a run shows whether fencers close in.
+    np.testing.assert_allclose(np.asarray(out.info["distance"]), task.sub.start_distance, rtol=1e-5)
     # The paper's squared kernel at the same start: nothing to learn from.
     env_sq = _env("fencing", task=TaskConfig(name="fencing", fencing=dataclasses.replace(task.sub, close_squared=True)))
     sq = np.asarray(env_sq.task.close_reward(f))

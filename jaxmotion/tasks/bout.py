@@ -334,6 +334,7 @@ class Fencing(BoutTask):
             "draw": jnp.broadcast_to(ended, (2,)) & (win == 0),
             "result": jnp.broadcast_to(ended, (2,)),
             "close": close,
+            "distance": jnp.broadcast_to(jnp.linalg.norm(root[0] - root[1]), (2,)),
             "fall": fell,
             "out": out,
         }
