@@ -426,3 +426,31 @@ def test_uniform_init_sampling_picks_every_clip_alike():
         assert abs(freq - want) < 0.03, (sampling, freq)
     with pytest.raises(ValueError, match="init_sampling"):
         HumanoidEnv(dataclasses.replace(cfg, init_sampling="uniformly"), motion_libs=(lib,), init_lib=lib)
+
+
+@pytest.mark.parametrize("normalize_goal", [False, True])
+def test_goal_features_are_normalised_only_when_asked(normalize_goal):
+    """``ppo.normalize_goal`` (the tracker authors normalise the whole observation): the running
+    statistics then cover the goal features too, and learn them from rollouts."""
+    from jaxmotion.algos import normalizer as N
+    from jaxmotion.training.learner import Learner
+
+    base = tiny_tracker(MotionLib.from_clips([_moving_clip()]))
+    cfg = dataclasses.replace(base.cfg, ppo=dataclasses.replace(base.cfg.ppo, normalize_goal=normalize_goal))
+    learner = Learner(cfg, env=base.env)
+    body, total = learner.body_obs_size, learner.env.obs_size
+    assert learner.norm_size == (total if normalize_goal else body)
+    rng = np.random.default_rng(0)
+    obs = jnp.asarray(rng.normal(3.0, 2.0, (64, total)), jnp.float32)
+    with jit_enabled():
+        norm = jax.jit(lambda o: N.normalizer_update(N.normalizer_init(learner.norm_size), o[:, : learner.norm_size]))(
+            obs
+        )
+        out = np.asarray(jax.jit(learner.normalize_obs)(norm, obs))
+    mean, std = np.asarray(obs).mean(0), np.asarray(obs).std(0)
+    by_hand = np.clip((np.asarray(obs) - mean) / np.sqrt(std**2 + 1e-5), -5, 5)
+    np.testing.assert_allclose(out[:, :body], by_hand[:, :body], atol=2e-3)
+    if normalize_goal:
+        np.testing.assert_allclose(out[:, body:], by_hand[:, body:], atol=2e-3)
+    else:
+        np.testing.assert_array_equal(out[:, body:], np.asarray(obs)[:, body:])

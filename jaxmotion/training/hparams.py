@@ -96,6 +96,10 @@ class PPOConfig:
     better deal; measured here, a policy trained that way learned to fall sooner."""
     obs_clip: Annotated[float, Min(0, open=True), AllowInf()] = 5.0
     """The normalised body-state features are clipped to +-obs_clip (inf: not clipped)."""
+    normalize_goal: bool = False
+    """Normalise (and clip) the task's goal features with the body state's running statistics
+    too, as the tracker's authors normalise the whole observation; False: the goal features
+    enter raw after the normalised body state (the composite-motion authors' code)."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -132,6 +132,8 @@ class Learner:
                 raise ConfigError(f"env.groups and env.task weights: {e}") from None
         self.reward_weights = jnp.asarray(w / w.sum(), jnp.float32)
         self.body_obs_size = self.env.body_obs_size
+        self.norm_size = self.env.obs_size if cfg.ppo.normalize_goal else self.body_obs_size
+        """The leading observation features the running statistics normalise (``ppo.normalize_goal``)."""
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
         nc = cfg.net
         self.meta = meta
@@ -182,7 +184,7 @@ class Learner:
             policy_params=pp,
             critic_params=cp,
             opt_state=self.optimizer.init({"actor": pp, "critic": cp}),
-            obs_norm=N.normalizer_init(self.body_obs_size),
+            obs_norm=N.normalizer_init(self.norm_size),
             popart=PA.popart_init(self.num_objectives),
         )
 
@@ -223,9 +225,10 @@ class Learner:
 
     # ---- acting --------------------------------------------------------------------------
     def normalize_obs(self, norm: N.NormalizerState, obs: jax.Array) -> jax.Array:
-        """The body-state features normalised (and clipped), the goal features after them raw."""
-        body = N.normalize(norm, obs[..., : self.body_obs_size], self.cfg.ppo.obs_clip)
-        return jnp.concatenate([body, obs[..., self.body_obs_size :]], -1)
+        """The body-state features normalised (and clipped), the goal features after them raw
+        (with ``ppo.normalize_goal``: normalised too)."""
+        body = N.normalize(norm, obs[..., : self.norm_size], self.cfg.ppo.obs_clip)
+        return jnp.concatenate([body, obs[..., self.norm_size :]], -1)
 
     def policy_weights(self, ts: TrainState | PolicyState, obs: jax.Array) -> jax.Array:
         """The policy's composition weights [B, W] at raw observations (``Policy.weights``: the
@@ -468,10 +471,10 @@ class Learner:
         return ts.replace(rng=keys[0], **agents), jax.tree.map(lambda x: jnp.mean(x, 0), m)
 
     def update_obs_norm(self, norm: N.NormalizerState, traj: Transition) -> N.NormalizerState:
-        """The body-state statistics moved by a rollout's valid (not unstable) observations."""
+        """The observation statistics moved by a rollout's valid (not unstable) observations."""
 
         def upd(norm, obs, unstable):
-            body = obs[..., : self.body_obs_size]
+            body = obs[..., : self.norm_size]
             return N.normalizer_update(norm, body.reshape(-1, body.shape[-1]), ~unstable.reshape(-1))
 
         if self.separate:
