@@ -201,6 +201,7 @@ def test_recovery_trials_report_every_scenario(data_dir, monkeypatch, tmp_path, 
     assert s["far"]["start_error_m"] == pytest.approx(3.0, abs=0.05)  # the whole body moved 3 m
     assert 0.3 < s["fallen"]["start_error_m"] < 1.5
     assert all(0.0 <= v["succ_5s"] <= v["succ_10s"] <= 1.0 for v in s.values())
+    assert all(v["closest_m"] <= min(v["start_error_m"], v["end_error_m"]) + 1e-6 for v in s.values())
     assert "Succ-10s" in capsys.readouterr().out
 
 

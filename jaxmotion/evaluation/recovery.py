@@ -15,7 +15,8 @@ The paper (PHC §4.2, Table 4) gives few details and no code; the protocol here:
 * **Success within s seconds**: the mean body position error is back at or under 0.5 m (the
   tracker's failure rule) at some step up to s and stays there for ``HOLD_SECONDS`` (so a body
   lying under a standing reference does not count). Reported: Succ-5s and Succ-10s per scenario,
-  and the median time to recover among the trials that did.
+  the median time to recover among the trials that did, and the mean body error at the start,
+  at its smallest and at the end of the trials (progress short of a recovery).
 
 A tracker trained without recovery is evaluated with its own goal features (no point goal), so
 the same trials measure it as a baseline.
@@ -180,6 +181,8 @@ def evaluate_recovery(learner, ts, trials: int = 100, seed: int = 0, pose: str |
             "succ_10s": float(np.mean(times <= 10.0)),
             "median_time_s": float(np.median(done)) if done.size else float("nan"),
             "start_error_m": float(np.mean(e[0])),
+            "closest_m": float(np.mean(e.min(0))),
+            "end_error_m": float(np.mean(e[-1])),
         }
         first[name] = (qpos[:, i], np.broadcast_to(ref, (qpos.shape[0], ref.shape[-1])))
     return res, first
@@ -219,11 +222,13 @@ def run(args, experiment: str, cfg, learner, ts) -> int:
     res, first = evaluate_recovery(learner, ts, args.trials, args.seed, args.recovery_pose)
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     print(f"{experiment}: {res['samples']:,} samples, {args.trials} recovery trials per scenario")
-    print(f"  {'scenario':<12} {'Succ-5s':>8} {'Succ-10s':>9} {'median':>8} {'start error':>12}")
+    print(
+        f"  {'scenario':<12} {'Succ-5s':>8} {'Succ-10s':>9} {'median':>8} {'error at start':>15} {'closest':>8} {'end':>6}"
+    )
     for name, s in res["scenarios"].items():
         print(
             f"  {name:<12} {100 * s['succ_5s']:>7.1f}% {100 * s['succ_10s']:>8.1f}% "
-            f"{_seconds(s['median_time_s']):>8} {s['start_error_m']:>11.2f}m"
+            f"{_seconds(s['median_time_s']):>8} {s['start_error_m']:>14.2f}m {s['closest_m']:>7.2f}m {s['end_error_m']:>5.2f}m"
         )
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
