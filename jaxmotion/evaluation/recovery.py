@@ -223,12 +223,14 @@ def run(args, experiment: str, cfg, learner, ts) -> int:
     res = {"experiment": experiment, "samples": int(ts.iteration) * cfg.samples_per_iteration, **res}
     print(f"{experiment}: {res['samples']:,} samples, {args.trials} recovery trials per scenario")
     print(
-        f"  {'scenario':<12} {'Succ-5s':>8} {'Succ-10s':>9} {'median':>8} {'error at start':>15} {'closest':>8} {'end':>6}"
+        f"  {'scenario':<12} {'Succ-5s':>8} {'Succ-10s':>9} {'median':>8} "
+        f"{'error at start':>15} {'closest':>8} {'end':>6}"
     )
     for name, s in res["scenarios"].items():
         print(
             f"  {name:<12} {100 * s['succ_5s']:>7.1f}% {100 * s['succ_10s']:>8.1f}% "
-            f"{_seconds(s['median_time_s']):>8} {s['start_error_m']:>14.2f}m {s['closest_m']:>7.2f}m {s['end_error_m']:>5.2f}m"
+            f"{_seconds(s['median_time_s']):>8} {s['start_error_m']:>14.2f}m "
+            f"{s['closest_m']:>7.2f}m {s['end_error_m']:>5.2f}m"
         )
     if args.json:
         args.json.write_text(json.dumps(res, indent=2))
