@@ -28,8 +28,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from jaxmotion.config.errors import JaxmotionError
-from jaxmotion.motion.data import data_dir, resolve
+from jaxmotion.motion.data import resolve
+from jaxmotion.motion.errors import MotionFileError
 from jaxmotion.motion import plausibility as plaus
 from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import Clip, build_clip, select_frames
@@ -59,27 +59,6 @@ _DEEPMIMIC_LAYOUT = (
 _DEEPMIMIC_WIDTH = 8 + sum(w for _, w in _DEEPMIMIC_LAYOUT)  # 44
 # y-up -> z-up: +90 degrees about x, p' = (x, -z, y).
 _YUP_TO_ZUP = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
-_MAX_PROBLEM = 400
-
-
-class MotionFileError(JaxmotionError, ValueError):
-    """A motion file could not be read; the message names the file and the problem, on one line
-    (a file's values can be anything: a problem is cut to ``_MAX_PROBLEM`` characters)."""
-
-    @property
-    def hint(self) -> str:
-        if not any(s in self.problem for s in ("no such file", "no motion files")):
-            return ""  # a bad file's problem is in the file, not in where clips are looked for
-        return (
-            f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); point it at "
-            f"the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`."
-        )
-
-    def __init__(self, path: str | os.PathLike, problem: str):
-        self.path = str(path)
-        problem = " ".join(str(problem).split())
-        self.problem = problem if len(problem) <= _MAX_PROBLEM else problem[: _MAX_PROBLEM - 3] + "..."
-        super().__init__(f"{self.path}: {problem}")
 
 
 @dataclasses.dataclass
