@@ -34,12 +34,13 @@ from jaxmotion.motion import plausibility as plaus
 from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import Clip, build_clip, select_frames
 from jaxmotion.motion.convert import local_quats_to_dof, reference_body_pos
+from jaxmotion.motion.retarget import retarget_file
 from jaxmotion.motion.frame_ranges import Ranges, format_ranges, split_frame_ranges
 from jaxmotion.motion.safe_pickle import NotPickledObject, RefusedPickle, load_pickled_npy
 from jaxmotion.physics.character import Character
 from jaxmotion.physics.character import character as _character
 
-MOTION_SUFFIXES = (".json", ".txt", ".npy")
+MOTION_SUFFIXES = (".json", ".txt", ".npy", ".bvh")
 
 # DeepMimic humanoid3d frame: dt, root pos(3), root rot(4), then these (name, width) in order.
 _DEEPMIMIC_LAYOUT = (
@@ -394,7 +395,9 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
     """Loads one motion file.
 
     The format comes from the extension and content: ``.npy`` poselib SkeletonMotion; ``.json`` /
-    ``.txt`` with ``"frames"`` (CompositeMotion, both layouts) or ``"Frames"`` (DeepMimic).
+    ``.txt`` with ``"frames"`` (CompositeMotion, both layouts) or ``"Frames"`` (DeepMimic); ``.bvh``
+    motion capture, retargeted onto the humanoid with the first packaged skeleton mapping that
+    covers its joints (``retarget.retarget_file``; docs/bvh.md).
 
     Args:
         path: file path, absolute or relative to ``$JAXMOTION_DATA`` (see ``jaxmotion.motion.data``).
@@ -411,6 +414,12 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
     p = resolve(path)
     if not p.is_file():
         raise MotionFileError(p, "no such file")
+    if p.suffix.lower() == ".bvh":
+        if character is not None and character.sword_shield:
+            raise MotionFileError(
+                p, "a BVH is retargeted onto the 15-body humanoid only, not the sword-shield character"
+            )
+        return retarget_file(p)[0]
     try:
         raw = _read_raw(p, character)
         return _to_clip(p, raw, character or _character(raw.sword_shield))
