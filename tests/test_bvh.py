@@ -156,20 +156,40 @@ def test_own_skeleton_round_trip(tmp_path, walk):
     assert report.max_error_mm.max() < 10.0
 
 
-def test_other_skeleton_feet_on_floor(tmp_path, walk):
-    """LAFAN1 names, 10% longer legs, shorter forearms, mixed rotation orders, Y-up, centimetres."""
+CGSPEED = {**LAFAN, "torso": "Spine1", "head": "Head"}
+CGSPEED_EXTRA = (("RightToeBase", "right_foot", (0.12, 0.0, -0.04)), ("LeftToeBase", "left_foot", (0.12, 0.0, -0.04)))
+ASF = {
+    "pelvis": "hip", "torso": "upperback", "head": "lowerneck",
+    "right_upper_arm": "rhumerus", "right_lower_arm": "rradius", "right_hand": "rwrist",
+    "left_upper_arm": "lhumerus", "left_lower_arm": "lradius", "left_hand": "lwrist",
+    "right_thigh": "rfemur", "right_shin": "rtibia", "right_foot": "rfoot",
+    "left_thigh": "lfemur", "left_shin": "ltibia", "left_foot": "lfoot",
+}  # fmt: skip
+ASF_EXTRA = (
+    ("head", "head", (0.0, 0.0, 0.1)),
+    ("rtoes", "right_foot", (0.12, 0.0, -0.04)),
+    ("ltoes", "left_foot", (0.12, 0.0, -0.04)),
+)
+
+
+@pytest.mark.parametrize(
+    "skeleton, names, extra",
+    [("lafan1", LAFAN, LAFAN_EXTRA), ("cmu_cgspeed", CGSPEED, CGSPEED_EXTRA), ("cmu", ASF, ASF_EXTRA)],
+)
+def test_other_skeleton_feet_on_floor(tmp_path, walk, skeleton, names, extra):
+    """Another skeleton's joint names, 10% longer legs, shorter forearms, mixed rotation orders,
+    Y-up, centimetres: the mapping is found by the names, the feet land on the floor."""
     f = write_bvh(
-        tmp_path / "other.bvh", walk, names=LAFAN, extra=LAFAN_EXTRA, scale=100.0, bone_scale=OTHER, yup=True,
-        orders=ORDERS,
-    )  # fmt: skip
-    clip, report = retarget_file(f)  # the mapping is found by its joint names
-    assert report.skeleton == "lafan1" and report.metres_per_unit == 0.01
+        tmp_path / "other.bvh", walk, names=names, extra=extra, scale=100.0, bone_scale=OTHER, yup=True, orders=ORDERS
+    )
+    clip, report = retarget_file(f)
+    assert report.skeleton == skeleton and report.metres_per_unit == 0.01
     assert report.height_scale == pytest.approx(1 / 1.1, rel=1e-3)
     low = sole_points(clip)[:, :, 2].min(axis=1)
     src = sole_points(walk)[:, :, 2].min(axis=1)
     contact = src < np.percentile(src, 5) + 0.02
     print(
-        f"other skeleton: {report.summary()}; lowest foot point on {contact.sum()} contact frames "
+        f"{skeleton}: {report.summary()}; lowest foot point on {contact.sum()} contact frames "
         f"{low[contact].min() * 100:.2f} to {low[contact].max() * 100:.2f} cm, overall min {low.min() * 100:.2f} cm"
     )
     assert np.abs(low[contact]).max() < 0.03
