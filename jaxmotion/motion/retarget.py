@@ -105,7 +105,8 @@ def load_mapping(name_or_path: str) -> Mapping:
         targets = tuple(_target(j, v) for j, v in joints.items())
         at_origin = {t.body for t in targets if t.offset == (0.0, 0.0, 0.0)}
         if not {b for leg in LEGS for b in leg} <= at_origin:
-            raise ValueError(f"the mapping must map a joint to each of the legs' bodies {[b for leg in LEGS for b in leg]}")
+            legs = [b for leg in LEGS for b in leg]
+            raise ValueError(f"the mapping must map a joint to each of the legs' bodies {legs}")
         return Mapping(name, targets, d.get("up", "y"), d.get("units", "auto"))
     except (ValueError, KeyError, TypeError, AttributeError) as e:
         raise MotionFileError(path, f"bad skeleton mapping: {type(e).__name__}: {e}") from None
