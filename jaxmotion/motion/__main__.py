@@ -1,5 +1,11 @@
 """Lists motion files: ``python -m jaxmotion.motion <file-or-folder>[range] [...] [--json FILE]``.
 
+``python -m jaxmotion.motion retarget FILE.bvh [--skeleton NAME|MAPPING.json] --out CLIP.json`` retargets
+a BVH onto the character and writes it as a CompositeMotion JSON clip (``motion.retarget``, docs/bvh.md);
+it prints the BVH's skeleton, frames, fps and the retarget report. A ``.bvh`` in the listing is
+retargeted the same way (the first packaged mapping that covers its joints) and its report printed
+under its row.
+
 Prints one row per file (path, format, frames, fps, duration, mean root speed, fk error, and how
 fast its fastest joint turns against the servo's reach) and ``ERROR <path>: <message>`` for files
 that fail to load; the exit code is 1 if any file failed. A file may name frame ranges as training
@@ -32,7 +38,9 @@ import numpy as np
 from jaxmotion.config.errors import JaxmotionError, cli_errors
 from jaxmotion.motion.clip import mean_root_speed
 from jaxmotion.motion.frame_ranges import Ranges, format_ranges
+from jaxmotion.motion.clip import select_frames
 from jaxmotion.motion.loaders import MotionFileError, find_clip_specs, load_clip_frames
+from jaxmotion.motion.retarget import clip_to_json, retarget_file, skeleton_names
 from jaxmotion.physics import servo, sim
 from jaxmotion.physics.character import character
 
@@ -176,8 +184,57 @@ def _servo_summary(rows: list[dict], sword_shield: list[bool], servo_damping: st
     return info
 
 
+def _units(text: str) -> str | float:
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def retarget_main(argv: list[str]) -> int:
+    """``retarget FILE.bvh --out CLIP.json``: see the module docstring; exit 2 with one line on a bad file."""
+    ap = argparse.ArgumentParser(prog="python -m jaxmotion.motion retarget", description="Retargets a BVH file.")
+    ap.add_argument("bvh", help="the BVH file")
+    ap.add_argument(
+        "--skeleton",
+        help=f"mapping of BVH joints to bodies: a packaged one ({', '.join(skeleton_names())}) or a JSON "
+        "file; default: the first packaged one that covers the file's joints",
+    )
+    ap.add_argument("--out", required=True, metavar="CLIP.json", help="where to write the clip (CompositeMotion JSON)")
+    ap.add_argument(
+        "--units", type=_units, help="m, cm, mm, inch, auto or metres per file unit (default: the mapping's)"
+    )
+    ap.add_argument("--up", choices=("y", "z"), help="the file's up axis (default: the mapping's)")
+    ap.add_argument("--no-floor", action="store_true", help="keep the scaled BVH's heights (no feet-on-floor step)")
+    args = ap.parse_args(argv)
+    _check_json_target(args.out)
+    clip, report = retarget_file(args.bvh, args.skeleton, args.units, args.up, floor=not args.no_floor)
+    note = f"retargeted from {args.bvh} by python -m jaxmotion.motion retarget: {report.summary()}"
+    with open(args.out, "w") as fh:
+        json.dump(clip_to_json(clip, note), fh)
+    print(f"{args.bvh}: {report.summary()}")
+    print(f"wrote {args.out} ({clip.num_frames} frames at {clip.fps:g} fps)")
+    return 0
+
+
+def _load(path: Path, ranges: Ranges | None):
+    """(clip, the retarget summary of a BVH or None)."""
+    if path.suffix.lower() != ".bvh":
+        return load_clip_frames(path, ranges), None
+    clip, report = retarget_file(path)
+    if ranges is not None:
+        try:
+            clip = select_frames(clip, ranges)
+        except ValueError as e:
+            raise MotionFileError(path, str(e)) from None
+    return clip, report.summary()
+
+
 @cli_errors
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["retarget"]:
+        return retarget_main(argv[1:])
     ap = argparse.ArgumentParser(prog="python -m jaxmotion.motion", description=__doc__.splitlines()[0])
     ap.add_argument("paths", nargs="+", help="motion files or folders (searched recursively); file[a:b] for frames")
     ap.add_argument("--json", metavar="FILE", help="also write the table as JSON to FILE")
@@ -212,7 +269,7 @@ def main(argv: list[str] | None = None) -> int:
     print(header)
     for path, ranges in specs:
         try:
-            clip = load_clip_frames(path, ranges)
+            clip, bvh_summary = _load(path, ranges)
         except MotionFileError as e:
             errors.append({"path": e.path, "error": e.problem})
             print(f"ERROR {e.path}: {e.problem}")
@@ -229,6 +286,9 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['path']:<{width}}  {r['format']:<20} {r['frames']:>6d} {r['fps']:>8.3f} "
             f"{r['duration_s']:>7.2f} {r['root_speed_mps']:>9.3f} {r['fk_error_m']:>9.2e} {_ratio_cell(r)}"
         )
+        if bvh_summary:
+            r["retarget"] = bvh_summary
+            print(f"  bvh: {bvh_summary}")
     max_fk = max((r["fk_error_m"] for r in rows), default=float("nan"))
     print(f"{len(rows)} clips loaded, {len(errors)} errors, max fk error {max_fk:.2e} m")
     servo_info = _servo_summary(rows, sword_shield, args.servo_damping, args.sim_hz)

@@ -18,7 +18,7 @@ from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.frame_ranges import format_ranges, resolve_range
 from jaxmotion.physics.character import Character, character
 
-FORMATS = ("compositemotion_json", "deepmimic_txt", "poselib_npy", "generated")
+FORMATS = ("compositemotion_json", "deepmimic_txt", "poselib_npy", "bvh", "generated")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

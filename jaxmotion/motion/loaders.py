@@ -28,18 +28,19 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from jaxmotion.config.errors import JaxmotionError
-from jaxmotion.motion.data import data_dir, resolve
+from jaxmotion.motion.data import resolve
+from jaxmotion.motion.errors import MotionFileError
 from jaxmotion.motion import plausibility as plaus
 from jaxmotion.motion import rotations as rot
 from jaxmotion.motion.clip import Clip, build_clip, select_frames
 from jaxmotion.motion.convert import local_quats_to_dof, reference_body_pos
+from jaxmotion.motion.retarget import retarget_file
 from jaxmotion.motion.frame_ranges import Ranges, format_ranges, split_frame_ranges
 from jaxmotion.motion.safe_pickle import NotPickledObject, RefusedPickle, load_pickled_npy
 from jaxmotion.physics.character import Character
 from jaxmotion.physics.character import character as _character
 
-MOTION_SUFFIXES = (".json", ".txt", ".npy")
+MOTION_SUFFIXES = (".json", ".txt", ".npy", ".bvh")
 
 # DeepMimic humanoid3d frame: dt, root pos(3), root rot(4), then these (name, width) in order.
 _DEEPMIMIC_LAYOUT = (
@@ -59,27 +60,6 @@ _DEEPMIMIC_LAYOUT = (
 _DEEPMIMIC_WIDTH = 8 + sum(w for _, w in _DEEPMIMIC_LAYOUT)  # 44
 # y-up -> z-up: +90 degrees about x, p' = (x, -z, y).
 _YUP_TO_ZUP = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])
-_MAX_PROBLEM = 400
-
-
-class MotionFileError(JaxmotionError, ValueError):
-    """A motion file could not be read; the message names the file and the problem, on one line
-    (a file's values can be anything: a problem is cut to ``_MAX_PROBLEM`` characters)."""
-
-    @property
-    def hint(self) -> str:
-        if not any(s in self.problem for s in ("no such file", "no motion files")):
-            return ""  # a bad file's problem is in the file, not in where clips are looked for
-        return (
-            f"Motion clips are read from $JAXMOTION_DATA (now {str(data_dir().resolve())!r}); point it at "
-            f"the folder of clips, e.g. `export JAXMOTION_DATA=/path/to/shared/motions`."
-        )
-
-    def __init__(self, path: str | os.PathLike, problem: str):
-        self.path = str(path)
-        problem = " ".join(str(problem).split())
-        self.problem = problem if len(problem) <= _MAX_PROBLEM else problem[: _MAX_PROBLEM - 3] + "..."
-        super().__init__(f"{self.path}: {problem}")
 
 
 @dataclasses.dataclass
@@ -415,7 +395,9 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
     """Loads one motion file.
 
     The format comes from the extension and content: ``.npy`` poselib SkeletonMotion; ``.json`` /
-    ``.txt`` with ``"frames"`` (CompositeMotion, both layouts) or ``"Frames"`` (DeepMimic).
+    ``.txt`` with ``"frames"`` (CompositeMotion, both layouts) or ``"Frames"`` (DeepMimic); ``.bvh``
+    motion capture, retargeted onto the humanoid with the first packaged skeleton mapping that
+    covers its joints (``retarget.retarget_file``; docs/bvh.md).
 
     Args:
         path: file path, absolute or relative to ``$JAXMOTION_DATA`` (see ``jaxmotion.motion.data``).
@@ -432,6 +414,12 @@ def load_clip(path: str | os.PathLike, character: Character | None = None) -> Cl
     p = resolve(path)
     if not p.is_file():
         raise MotionFileError(p, "no such file")
+    if p.suffix.lower() == ".bvh":
+        if character is not None and character.sword_shield:
+            raise MotionFileError(
+                p, "a BVH is retargeted onto the 15-body humanoid only, not the sword-shield character"
+            )
+        return retarget_file(p)[0]
     try:
         raw = _read_raw(p, character)
         return _to_clip(p, raw, character or _character(raw.sword_shield))
