@@ -525,7 +525,7 @@ def test_bad_files_raise_motion_file_error(tmp_path, case):
         np.save(p, _poselib_dict(True), allow_pickle=True)
         character_arg, expect = character(False), "wrong skeleton"
     else:
-        p, expect = _write_json(tmp_path / "a.bvh", "HIERARCHY"), "unsupported file type"
+        p, expect = _write_json(tmp_path / "a.fbx", "Kaydara FBX Binary"), "unsupported file type"  # .bvh reads now
     with pytest.raises(MotionFileError) as info:
         load_clip(p, character_arg)
     assert str(p) in str(info.value) and expect in str(info.value)
