@@ -11,12 +11,11 @@ import numpy as np
 import pytest
 
 from conftest import jit_enabled
-from jaxmotion.envs.humanoid import EnvConfig, GroupConfig, HumanoidEnv
 from jaxmotion.motion import MotionLib
 from jaxmotion.motion import observations as O
 from jaxmotion.physics import falls, sim
-from jaxmotion.tasks import TaskConfig, TrackConfig
 from jaxmotion.tasks import recovery as RC
+from test_track import _env as track_env
 from test_track import _moving_clip
 
 
@@ -28,19 +27,9 @@ def _frames(pos):
 
 
 def _env(**rec):
-    lib = MotionLib.from_clips([_moving_clip(60)])
+    """``test_track``'s scene on a 2-s clip with recovery on (a 4-state fallen pool), no contact falls."""
     rc = RC.RecoveryConfig(enabled=True, pool_size=4, **rec)
-    task = TaskConfig(name="track", track=TrackConfig(recovery=rc))
-    cfg = EnvConfig(
-        groups=(GroupConfig(name="full"),),
-        episode_steps=100,
-        policy_frames=1,
-        early_termination=False,
-        task=task,
-        init_within_limits=False,
-        init_above_ground=False,
-    )
-    return HumanoidEnv(cfg, motion_libs=(lib,), init_lib=lib)
+    return track_env(clip=_moving_clip(60), recovery=rc, early_termination=False)
 
 
 def test_far_goal_keeps_only_the_root_target_when_far():

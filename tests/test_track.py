@@ -25,16 +25,18 @@ def _moving_clip(frames=30):
     return make_test_clip(frames, 30.0, root_vel=(0.6, 0.1, 0.0), root_height=0.95, yaw_rate=0.4, dof_pos=dof)
 
 
-def _env(goal="rotation", termination="max", distance=0.25, clip=None, residual=False):
+def _env(goal="rotation", termination="max", distance=0.25, clip=None, residual=False, **more):
+    """A tracker scene on one clip; ``more``: further ``TrackConfig`` fields (``recovery``) and
+    ``early_termination``."""
     lib = MotionLib.from_clips([_moving_clip() if clip is None else clip])
-    task = TaskConfig(
-        name="track",
-        track=TrackConfig(goal=goal, termination=termination, termination_distance=distance, residual=residual),
-    )
+    early = more.pop("early_termination", True)
+    track = TrackConfig(goal=goal, termination=termination, termination_distance=distance, residual=residual, **more)
+    task = TaskConfig(name="track", track=track)
     cfg = EnvConfig(
         groups=(GroupConfig(name="full"),),
         episode_steps=100,
         policy_frames=1,
+        early_termination=early,
         task=task,
         init_within_limits=False,
         init_above_ground=False,

@@ -143,15 +143,14 @@ def _trial_program(learner, envs: dict[str, HumanoidEnv], trials: int, steps: in
 def recovery_times(err: np.ndarray, dt: float, hold_steps: int) -> np.ndarray:
     """[N] seconds until each trial's mean body error ``err`` [T, N] is at or under 0.5 m and
     stays there for ``hold_steps`` steps (inf: never within the record)."""
-    ok = err <= FAIL_MEAN_M
-    T = ok.shape[0]
+    ok = np.asarray(err) <= FAIL_MEAN_M
     out = np.full(ok.shape[1], np.inf)
-    for n in range(ok.shape[1]):
-        run = 0
-        for t in range(T - 1, -1, -1):  # run length of ok from t onwards
-            run = run + 1 if ok[t, n] else 0
-            if run >= hold_steps:
-                out[n] = (t + 1) * dt
+    if ok.shape[0] < hold_steps:
+        return out
+    # held[t, n]: trial n is under the threshold at steps t .. t + hold_steps - 1.
+    held = np.lib.stride_tricks.sliding_window_view(ok, hold_steps, axis=0).all(-1)
+    found = held.any(0)
+    out[found] = (held.argmax(0)[found] + 1) * dt
     return out
 
 
