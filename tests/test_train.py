@@ -1,4 +1,4 @@
-"""The training driver: exact resume, one vs two devices, config errors, objective weights.
+"""The training driver: exact resume, two devices in step, config errors, objective weights.
 
 The two heavy tests share one tiny configuration and, in this process, one compiled training
 chunk: ``jaxmotion.train.make_train_chunk`` is memoised for the module, so the uninterrupted run,
@@ -34,7 +34,7 @@ from jaxmotion.motion import MotionLib, make_test_clip
 from jaxmotion.training.learner import DiscConfig, Learner, PPOConfig, TrainConfig
 
 EXPERIMENT = "smoke"
-TIMING_FIELDS = ("steps_per_s",)
+TIMING_FIELDS = ("steps_per_s", "wall_s")
 
 
 def tiny_config() -> TrainConfig:
@@ -226,37 +226,33 @@ TWO_DEVICE_SCRIPT = textwrap.dedent("""
     sharded = [len(x.sharding.device_set) for x in jax.tree.leaves((ts.env_state, ts.obs)) if x.size]
     replicated = [len(x.sharding.device_set) for x in jax.tree.leaves(ts.policy_params)]
     specs = sorted({str(x.sharding.spec) for x in jax.tree.leaves((ts.env_state, ts.obs)) if x.size})
+    # Each device holds its own copy of a replicated leaf: the copies must be the same.
+    rest = ts.replace(env_state=None, obs=None)
+    apart = [jax.tree_util.keystr(p) for p, x in jax.tree_util.tree_flatten_with_path(rest)[0]
+             if not all(np.array_equal(np.asarray(s.data), np.asarray(x.addressable_shards[0].data))
+                        for s in x.addressable_shards)]
     json.dump({"keys": [jax.tree_util.keystr(p) for p, _ in paths], "env_device_counts": sharded,
-               "param_device_counts": replicated, "env_specs": specs, "metrics": res.metrics},
+               "param_device_counts": replicated, "env_specs": specs, "metrics": res.metrics,
+               "copies_apart": apart},
               open(out / "info.json", "w"))
 """)
 
 
-def _max_rel_err(x: np.ndarray, y: np.ndarray) -> float:
-    """max |x - y| over the leaf, relative to the leaf's largest magnitude."""
-    if not x.size:
-        return 0.0
-    x64 = x.astype(np.float64)
-    scale = float(np.abs(x64).max())
-    err = float(np.abs(x64 - y).max())
-    return err / scale if scale > 0 else err
-
-
 @pytest.mark.slow
-def test_two_devices_match_one_device(runs, tmp_path, request):
-    """The same global batch (4 envs) split 2+2 over two host devices gives the same update as one
-    device: compared with run B's state after its first iteration (same config, seed, chunk).
+def test_two_devices_train_in_step(runs, tmp_path, request):
+    """The same global batch (4 envs) split 2+2 over two host devices: each device runs the
+        iteration on its own environments (``loop.per_device``) and the two stay one synchronous
+        update, compared with run B's state after its first iteration (same config, seed, chunk).
 
-    Not bit for bit: the two-device program runs the MJX physics as a differently shaped
-    computation, and float32 MJX gives slightly different numbers per compiled batch shape (even
-    on one device a batch-1 and a batch-4 program differ by up to ~1e-4 in qpos after 16
-    substeps of contact-rich motion). Measured here: rollouts and statistics agree to 2e-4
-    relative, gradients (Adam's moments) to 3e-3 (asserted: 5e-3 and 5e-2, a margin for other
-    CPUs), and parameters to float tolerance except a handful of elements (3 of 8440 in the
-    policy) where Adam's first step, lr * sign(g), turned the sign of a near-zero gradient element
-    into a 2 * lr difference.
-    A real data-parallel error (a per-device mean, unsynchronised gradients or normalisers)
-    would differ at the O(1) level everywhere.
+        Each device draws its own action noise, resets, reference windows and minibatches, so the
+        numbers are not one device's; what must hold: the batch really is split, every replicated
+        leaf (parameters, optimiser moments, the normalisers, PopArt) is the same on both devices
+        (an unsynchronised gradient or statistic would tell them apart), the normalisers counted
+        every sample of both devices, each parameter is within Adam's bound of the one-device update
+        (Adam moves an element by at most ~lr per step whatever the data; the critic's value head is
+    also rescaled by PopArt with the data's returns), and the logged metrics have
+        the same keys and are finite. The reductions themselves are checked exactly against one device
+        in ``test_data_parallel.py``.
     """
     script = tmp_path / "two_devices.py"
     script.write_text(TWO_DEVICE_SCRIPT)
@@ -282,63 +278,34 @@ def test_two_devices_match_one_device(runs, tmp_path, request):
     assert info["env_device_counts"] and set(info["env_device_counts"]) == {2}
     assert all("data" in s for s in info["env_specs"]), info["env_specs"]
     assert set(info["param_device_counts"]) == {2}
+    assert info["copies_apart"] == []
 
     cfg = runs["cfg"]
     n = cfg.samples_per_iteration
     ppo_steps = cfg.ppo.epochs * n // cfg.ppo.minibatch_size
     disc_steps = n // cfg.disc.minibatch_size
-    # Adam moves an element by at most ~lr per step: the bound for a flipped-sign element.
     adam_bound = {
         ".policy_params": 2 * cfg.ppo.actor_lr * ppo_steps,
         ".critic_params": 2 * cfg.ppo.critic_lr * ppo_steps,
         ".disc_params": 2 * cfg.disc.lr * disc_steps,
     }
-
     one = runs["b1_leaves"]
     two = np.load(tmp_path / "state.npz")
     assert info["keys"] == [k for k, _ in one]
-    worst: dict[str, tuple[float, str]] = {}
-    params: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
-
-    def note(kind, err, k):
-        if err >= worst.get(kind, (-1.0, ""))[0]:
-            worst[kind] = (err, k)
-
     for i, (k, x) in enumerate(one):
         y = two[f"arr_{i}"]
         assert x.shape == y.shape and x.dtype == y.dtype, k
-        if not np.issubdtype(x.dtype, np.floating):
-            # Keys, counters, step counts, contact indices: identical.
-            np.testing.assert_array_equal(x, y, err_msg=k)
-        elif k.startswith(tuple(adam_bound)):
-            params.setdefault(k.split("[")[0], []).append((x, y))
-        elif k.startswith((".opt_state", ".disc_opt_state")):
-            err = _max_rel_err(x, y)
-            note("adam moments", err, k)
-            assert err <= 5e-2, (k, err)
-        else:
-            err = _max_rel_err(x, y)
-            note("rollout and statistics", err, k)
-            assert err <= 5e-3, (k, err)
-    assert params.keys() == adam_bound.keys()
-    for net, pairs in params.items():
-        diff = np.concatenate([np.abs(x.astype(np.float64) - y).ravel() for x, y in pairs])
-        tol = np.concatenate([np.full(x.size, 1e-4 * max(1.0, float(np.abs(x).max()))) for x, _ in pairs])
-        outliers = int((diff > tol).sum())
-        note(f"{net} (max abs; {outliers}/{diff.size} beyond 1e-4 x scale)", float(diff.max()), net)
-        assert diff.max() <= adam_bound[net] + tol.max(), (net, diff.max(), adam_bound[net])
-        assert outliers <= 0.01 * diff.size, (net, outliers, diff.size)
-    print("two vs one device, largest differences:")
-    for kind, (err, k) in worst.items():
-        print(f"  {kind}: {err:.3g} at {k}")
+        if k.startswith(tuple(adam_bound)) and "value_head" not in k:  # PopArt rescales the head by the data
+            bound = adam_bound[k.split("[")[0]] + 1e-4 * max(1.0, float(np.abs(x).max()))
+            assert float(np.abs(x.astype(np.float64) - y).max()) <= bound, k
+        elif k.endswith(".count") and k.startswith((".obs_norm", ".disc_norm")):
+            assert y == x, k  # every sample of both devices, once
+        elif k == ".iteration":
+            assert y == x
 
-    # The logged metrics of that iteration agree to float tolerance too (timings excepted).
     row1, row2 = _untimed(runs["b1_rows"][0]), _untimed(info["metrics"][0])
     assert row1.keys() == row2.keys()
-    mdiff = {k: abs(row1[k] - row2[k]) / max(1.0, abs(row1[k])) for k in row1}
-    print("  metrics: {:.3g} at {}".format(*max((v, k) for k, v in mdiff.items())))
-    for k in row1:
-        assert row2[k] == pytest.approx(row1[k], rel=1e-2, abs=1e-3), k
+    assert all(np.isfinite(v) for v in row2.values())
 
 
 def test_cli_rejects_config_typo():

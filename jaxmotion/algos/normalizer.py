@@ -56,6 +56,7 @@ def normalizer_update(
     mask: jax.Array | None = None,
     var_eps: float = 1e-5,
     std_max: float = 1e6,
+    axis_name: str | None = None,
 ) -> NormalizerState:
     """Merges a batch into the running statistics.
 
@@ -77,10 +78,11 @@ def normalizer_update(
     weights = jnp.ones((batch.shape[0],), jnp.float32) if mask is None else mask.astype(jnp.float32).reshape(-1)
     weights = weights[:, None]
 
-    n_b = jnp.sum(weights)
+    total = (lambda x: jax.lax.psum(x, axis_name)) if axis_name else (lambda x: x)
+    n_b = total(jnp.sum(weights))
     safe_n_b = jnp.maximum(n_b, 1.0)
-    mean_b = jnp.sum(weights * batch, axis=0) / safe_n_b
-    m2_b = jnp.sum(weights * jnp.square(batch - mean_b), axis=0)
+    mean_b = total(jnp.sum(weights * batch, axis=0)) / safe_n_b
+    m2_b = total(jnp.sum(weights * jnp.square(batch - mean_b), axis=0))
 
     n = state.count + n_b
     safe_n = jnp.maximum(n, 1.0)

@@ -72,7 +72,9 @@ def popart_init(num_heads: int) -> PopArtState:
     )
 
 
-def popart_update(state: PopArtState, targets: jax.Array, beta: float = 0.1) -> PopArtState:
+def popart_update(
+    state: PopArtState, targets: jax.Array, beta: float = 0.1, axis_name: str | None = None
+) -> PopArtState:
     """Moves the statistics towards the moments of a batch of return targets.
 
     Args:
@@ -80,14 +82,17 @@ def popart_update(state: PopArtState, targets: jax.Array, beta: float = 0.1) -> 
       targets: ``[..., K]`` unnormalised return targets (e.g. ``[T, B, K]`` or ``[N, K]``); all
         leading axes are pooled.
       beta: EMA step size in (0, 1].
+      axis_name: inside ``shard_map``, the mesh axis the batch is split over (equal shares):
+        the moments are those of every device's targets together.
 
     Returns:
       The new state. The critic's last layer must then be rescaled with ``preserve_outputs``.
     """
     targets = jax.lax.stop_gradient(targets).astype(jnp.float32)
     targets = targets.reshape(-1, targets.shape[-1])
-    m1 = jnp.mean(targets, axis=0)
-    s1 = jnp.mean(jnp.square(targets - m1), axis=0)
+    mean = (lambda x: jax.lax.pmean(x, axis_name)) if axis_name else (lambda x: x)
+    m1 = mean(jnp.mean(targets, axis=0))
+    s1 = mean(jnp.mean(jnp.square(targets - m1), axis=0))
     old_weight = (1.0 - beta) * state.debias
     debias = old_weight + beta
     mean = (old_weight * state.mean + beta * m1) / debias

@@ -77,6 +77,7 @@ def combine_advantages(
     weights: jax.Array,
     standardize: bool = True,
     eps: float = 1e-8,
+    axis_name: str | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Standardises each objective's advantage over the batch, then takes the weighted sum.
 
@@ -88,11 +89,18 @@ def combine_advantages(
       weights: ``[K]`` objective weights (summing to 1 by convention).
       standardize: if False, ``Abar_k = A_k``.
       eps: added to the std.
+      axis_name: inside ``shard_map``, the mesh axis the batch is split over (equal shares):
+        mean and std are those of every device's advantages together.
 
     Returns:
       ``(combined [N], standardised [N, K])``.
     """
-    if standardize:
+    if standardize and axis_name:
+        n = advantages.shape[0] * jax.lax.axis_size(axis_name)
+        mean = jax.lax.pmean(jnp.mean(advantages, axis=0), axis_name)
+        ss = jax.lax.psum(jnp.sum(jnp.square(advantages - mean), axis=0), axis_name)
+        advantages = (advantages - mean) / (jnp.sqrt(ss / max(n - 1, 1)) + eps)
+    elif standardize:
         ddof = 1 if advantages.shape[0] > 1 else 0
         mean = jnp.mean(advantages, axis=0)
         sd = jnp.std(advantages, axis=0, ddof=ddof)

@@ -18,8 +18,10 @@ very same JAX code from the same ``qpos``/``qvel``.
   comes back non-finite and the env resets it like MJX's.
 * ``auto``: ``mujoco`` on a CPU, ``mjx`` on an accelerator.
 
-Under ``shard_map`` each device's callback steps its own shard; calls from several devices are
-serialised (the pool already uses every core).
+Under ``shard_map`` each device's callback steps its own shard, at the same time as the other
+devices': a call borrows one of as many thread pools (each with its own scratch data) as there are
+local devices; by default a pool has the host's cores divided by the local devices (a 2-core CPU
+run as two devices: one thread each).
 
 MuJoCo C reports trouble (a NaN control, a diverging state) through ``mju_warning``, whose default
 handler appends to ``MUJOCO_LOG.TXT`` in the working directory, once per affected rollout, with no
@@ -30,8 +32,10 @@ message, and the training driver writes the counts into the run folder.
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import os
+import queue
 import threading
 
 import jax
@@ -229,11 +233,40 @@ def _with_ground_sensors(mj_xml: str, floor: str = "floor", channels=()) -> mujo
     return spec.compile()
 
 
-@functools.lru_cache(maxsize=4)
-def _pool(nthread: int):
-    from mujoco import rollout
+class _Pools:
+    """``count`` rollout pools of ``nthread`` threads each; a call borrows a free one (a pool
+    serves one call at a time), so that as many calls as pools step at once."""
 
-    return rollout.Rollout(nthread=nthread)
+    def __init__(self, nthread: int, count: int):
+        from mujoco import rollout
+
+        self.pools = [rollout.Rollout(nthread=nthread) for _ in range(count)]
+        self._free: queue.SimpleQueue[int] = queue.SimpleQueue()
+        for i in range(count):
+            self._free.put(i)
+
+    @contextlib.contextmanager
+    def borrow(self):
+        """Yields (index, pool) of a free pool, waiting for one."""
+        i = self._free.get()
+        try:
+            yield i, self.pools[i]
+        finally:
+            self._free.put(i)
+
+
+@functools.lru_cache(maxsize=8)
+def _pools(nthread: int, count: int) -> _Pools:
+    return _Pools(nthread, count)
+
+
+def default_threads() -> int:
+    """Threads of one device's pool: the CPUs this process may use over its local devices."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cpus = os.cpu_count() or 1
+    return max(1, cpus // jax.local_device_count())
 
 
 class MujocoPhysics:
@@ -271,9 +304,11 @@ class MujocoPhysics:
         self.mj = m
         self.model = model
         self.substeps = substeps
-        self.nthread = int(nthread or os.cpu_count() or 1)
-        self._datas = [mujoco.MjData(m) for _ in range(self.nthread)]
-        self._lock = threading.Lock()
+        self.nthread = int(nthread or default_threads())
+        self.calls = max(1, jax.local_device_count())
+        """Calls that may step at once (one per local device), each with its own pool and data."""
+        # Scratch data per pool, made here: MjData made inside the callback crashed MuJoCo.
+        self._datas = [[mujoco.MjData(m) for _ in range(self.nthread)] for _ in range(self.calls)]
         full = mujoco.mjtState.mjSTATE_FULLPHYSICS
         if mujoco.mj_stateSize(m, full) != 1 + m.nq + m.nv:
             raise NotImplementedError(
@@ -291,9 +326,9 @@ class MujocoPhysics:
         state0[:, 1 + m.nq :] = qvel.reshape(n, m.nv)
         ctrl = np.repeat(np.asarray(target, np.float64).reshape(n, 1, m.nu), self.substeps, axis=1)
         warm0 = np.ascontiguousarray(warm.reshape(n, m.nv), np.float64)
-        with self._lock:
-            states, sensors = _pool(self.nthread).rollout(
-                m, self._datas, state0, ctrl, nstep=self.substeps, initial_warmstart=warm0
+        with _pools(self.nthread, self.calls).borrow() as (i, pool):
+            states, sensors = pool.rollout(
+                m, self._datas[i], state0, ctrl, nstep=self.substeps, initial_warmstart=warm0
             )
         last = states[:, -1]
         q1, v1 = last[:, 1 : 1 + m.nq], last[:, 1 + m.nq :]

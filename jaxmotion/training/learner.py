@@ -3,7 +3,10 @@
 One iteration (``Learner.iteration``) is a pure function of a ``TrainState``;
 ``loop.make_train_chunk`` scans ``K`` of them under one ``jax.jit`` with the state donated and
 the environment batch sharded over a ``data`` mesh axis (synchronous data parallelism, as in
-DD-PPO).
+DD-PPO). Over several devices the iteration runs per device under ``shard_map`` (``axis``): each
+device steps, scores and trains on its own environments and minibatch shares, and every batch
+statistic (observation and discriminator normalisers, PopArt, advantage standardisation), every
+gradient and every logged mean is reduced over the axis, so the parameters stay replicated.
 
 Objectives: one per body-group discriminator and one per reward the task names
 (``env.task.reward_names``), each with its own critic head, GAE and PopArt normaliser; advantages
@@ -273,7 +276,9 @@ class Learner:
             step, mesh=mesh, in_specs=(P("data"), P("data"), P("data")), out_specs=P("data"), check_vma=False
         )
 
-    def rollout(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, Transition]:
+    def rollout(
+        self, ts: TrainState, mesh: Mesh | None = None, axis: str | None = None
+    ) -> tuple[TrainState, Transition]:
         """Unrolls the policy for ``horizon`` control steps in every environment: [T, B, ...]
         (two players with a shared policy: [T, B * P, ...]; separate policies: [T, B, P, ...]).
 
@@ -281,12 +286,13 @@ class Learner:
         a reset computed (and mostly thrown away) on every step: on the 2-core CPU that reset was
         half the cost of a rollout. An environment that ends two episodes within one rollout
         (``horizon`` = 8 steps, 0.27 s) starts both from that same reference state.
+
+        ``axis``: called per device inside ``shard_map`` (``ts`` holds this device's environments
+        and a per-device ``rng``; see ``iteration``).
         """
-        batch_step = self.batch_step(mesh)
+        batch_step = self.batch_step(mesh) if axis is None else jax.vmap(self.env.step)
         rng, key, k_pool = jax.random.split(ts.rng, 3)
-        pool = jax.vmap(self.env.reset, in_axes=(0, None))(
-            jax.random.split(k_pool, self.cfg.ppo.num_envs), ts.clip_weights
-        )
+        pool = jax.vmap(self.env.reset, in_axes=(0, None))(jax.random.split(k_pool, ts.obs.shape[0]), ts.clip_weights)
 
         def step(carry, key):
             env_state, obs, opp = carry
@@ -318,15 +324,17 @@ class Learner:
         return ts.replace(env_state=env_state, obs=obs, rng=rng, pool=opp), traj
 
     # ---- discriminators --------------------------------------------------------------------
-    def _update_disc(self, net, params, opt_state, norm, pol, ref, rng):
-        """One pass of minibatches over [n, D] policy and reference windows; returns new state."""
+    def _update_disc(self, net, params, opt_state, norm, pol, ref, rng, axis=None):
+        """One pass of minibatches over [n, D] policy and reference windows; returns new state.
+        With ``axis`` each device takes its share of every minibatch and the gradients are averaged."""
         dc = self.cfg.disc
-        norm = N.normalizer_update(norm, jnp.concatenate([pol, ref], 0))
+        norm = N.normalizer_update(norm, jnp.concatenate([pol, ref], 0), axis_name=axis)
         k_perm, k_gp = jax.random.split(rng)
         n = pol.shape[0]
-        nmb = n // dc.minibatch_size
-        perm = jax.random.permutation(k_perm, n)[: nmb * dc.minibatch_size]
-        mb = lambda x: N.normalize(norm, x[perm], None).reshape(nmb, dc.minibatch_size, -1)
+        size = dc.minibatch_size // _devices(axis)
+        nmb = n // size
+        perm = jax.random.permutation(k_perm, n)[: nmb * size]
+        mb = lambda x: N.normalize(norm, x[perm], None).reshape(nmb, size, -1)
 
         def body(carry, xs):
             p, o = carry
@@ -334,7 +342,7 @@ class Learner:
             (_, m), grads = jax.value_and_grad(D.disc_loss, argnums=1, has_aux=True)(
                 net.apply, p, x_pol, x_ref, k, dc.gp_weight, dc.gp_mode, net.head_grad_sq_norms, dc.loss
             )
-            updates, o = self.disc_optimizer.update(grads, o, p)
+            updates, o = self.disc_optimizer.update(_mean(grads, axis), o, p)
             return (optax.apply_updates(p, updates), o), m
 
         (params, opt_state), metrics = jax.lax.scan(
@@ -352,7 +360,7 @@ class Learner:
             out.append(D.disc_reward(logits, self.cfg.disc.loss).reshape(T, B))
         return jnp.stack(out, -1) if out else jnp.zeros((T, B, 0), jnp.float32)
 
-    def disc_step(self, ts: TrainState, traj: Transition):
+    def disc_step(self, ts: TrainState, traj: Transition, axis: str | None = None):
         """Updates every ensemble on this rollout vs fresh reference windows; returns rewards [T,B,G]."""
         T, B = traj.terminated.shape
         rng, k_ref, k_upd = jax.random.split(ts.rng, 3)
@@ -361,7 +369,7 @@ class Learner:
         for g, (net, key) in enumerate(zip(self.discs, jax.random.split(k_upd, len(self.discs)))):
             pol = traj.disc_obs[g].reshape(T * B, -1)
             p, o, n, m = self._update_disc(
-                net, ts.disc_params[g], ts.disc_opt_state[g], ts.disc_norm[g], pol, refs[g], key
+                net, ts.disc_params[g], ts.disc_opt_state[g], ts.disc_norm[g], pol, refs[g], key, axis
             )
             new_p.append(p)
             new_o.append(o)
@@ -380,8 +388,9 @@ class Learner:
         v = self.critic.apply(ts.critic_params, self.normalize_obs(ts.obs_norm, obs))
         return PA.denormalize(ts.popart, v) if self.cfg.ppo.popart else v
 
-    def ppo_step(self, ts: TrainState, traj: Transition, rewards: jax.Array):
-        """GAE per objective, PopArt, then PPO epochs over minibatches."""
+    def ppo_step(self, ts: TrainState, traj: Transition, rewards: jax.Array, axis: str | None = None):
+        """GAE per objective, PopArt, then PPO epochs over minibatches (with ``axis``: each
+        device's share of every minibatch, gradients averaged over the devices)."""
         pc = self.cfg.ppo
         if not pc.multi_objective:
             rewards = (rewards * self.reward_weights).sum(-1, keepdims=True)
@@ -398,7 +407,7 @@ class Learner:
         adv, returns = G.compute_gae(rewards, values, next_values, term, trunc, pc.gamma, pc.lam)
         metrics = {}
         if pc.popart:
-            new_pa = PA.popart_update(ts.popart, returns, pc.popart_beta)
+            new_pa = PA.popart_update(ts.popart, returns, pc.popart_beta, axis_name=axis)
             w, b = nets.value_head(ts.critic_params)
             w, b = PA.preserve_outputs(ts.popart, new_pa, w, b)
             ts = ts.replace(popart=new_pa, critic_params=nets.replace_value_head(ts.critic_params, w, b))
@@ -406,7 +415,7 @@ class Learner:
             metrics["popart/std"] = PA.std(new_pa)
         n = rewards.shape[0] * rewards.shape[1]
         flat = lambda x: x.reshape((n,) + x.shape[2:])
-        _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights)
+        _, std_adv = PPO.combine_advantages(flat(adv), self.objective_weights, axis_name=axis)
         nobs = self.normalize_obs(ts.obs_norm, flat(traj.obs))
         # The policy also sees what it conditioned on when acting (a [N, 0] array for a plain policy).
         batch = PPO.PPOBatch(
@@ -435,17 +444,18 @@ class Learner:
                 pc.per_objective_clip,
             )
 
-        nmb = n // pc.minibatch_size
+        size = pc.minibatch_size // _devices(axis)
+        nmb = n // size
 
         def sgd_step(carry, mb):
             params, opt_state = carry
             (_, m), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, mb)
-            updates, opt_state = self.optimizer.update(grads, opt_state, params)
+            updates, opt_state = self.optimizer.update(_mean(grads, axis), opt_state, params)
             return (optax.apply_updates(params, updates), opt_state), m
 
         def epoch(carry, key):
-            perm = jax.random.permutation(key, n)[: nmb * pc.minibatch_size]  # all of it, but with a pool
-            mbs = jax.tree.map(lambda x: x[perm].reshape((nmb, pc.minibatch_size) + x.shape[1:]), batch)
+            perm = jax.random.permutation(key, n)[: nmb * size]  # all of it, but with a pool
+            mbs = jax.tree.map(lambda x: x[perm].reshape((nmb, size) + x.shape[1:]), batch)
             return jax.lax.scan(sgd_step, carry, mbs)
 
         rng, key = jax.random.split(ts.rng)
@@ -458,37 +468,45 @@ class Learner:
         return ts, metrics
 
     # ---- one iteration -------------------------------------------------------------------
-    def ppo_step_players(self, ts: TrainState, traj: Transition, rewards: jax.Array):
+    def ppo_step_players(self, ts: TrainState, traj: Transition, rewards: jax.Array, axis: str | None = None):
         """``ppo_step`` for every player's own agent on its own transitions ([T, B, P, ...])."""
         keys = jax.random.split(ts.rng, self.players + 1)
         agents = {f: getattr(ts, f) for f in AGENT_FIELDS}
 
         def one(agent, traj_p, rewards_p, key):
-            sub, m = self.ppo_step(ts.replace(rng=key, **agent), traj_p, rewards_p)
+            sub, m = self.ppo_step(ts.replace(rng=key, **agent), traj_p, rewards_p, axis)
             return {f: getattr(sub, f) for f in AGENT_FIELDS}, m
 
         agents, m = jax.vmap(one, in_axes=(0, 2, 2, 0))(agents, traj, rewards, keys[1:])
         return ts.replace(rng=keys[0], **agents), jax.tree.map(lambda x: jnp.mean(x, 0), m)
 
-    def update_obs_norm(self, norm: N.NormalizerState, traj: Transition) -> N.NormalizerState:
+    def update_obs_norm(self, norm: N.NormalizerState, traj: Transition, axis: str | None = None) -> N.NormalizerState:
         """The observation statistics moved by a rollout's valid (not unstable) observations."""
 
         def upd(norm, obs, unstable):
             body = obs[..., : self.norm_size]
-            return N.normalizer_update(norm, body.reshape(-1, body.shape[-1]), ~unstable.reshape(-1))
+            return N.normalizer_update(norm, body.reshape(-1, body.shape[-1]), ~unstable.reshape(-1), axis_name=axis)
 
         if self.separate:
             return jax.vmap(upd, in_axes=(0, 2, 2))(norm, traj.obs, traj.unstable)
         return upd(norm, traj.obs, traj.unstable)
 
-    def iteration(self, ts: TrainState, mesh: Mesh | None = None) -> tuple[TrainState, dict]:
-        ts, traj = self.rollout(ts, mesh)
+    def iteration(self, ts: TrainState, mesh: Mesh | None = None, axis: str | None = None) -> tuple[TrainState, dict]:
+        """One iteration over the whole batch (``mesh``: the batch's devices, physics stepped per
+        shard), or, with ``axis``, this device's part of it inside ``shard_map``: the randomness of
+        sampling, resets, reference windows and minibatches is drawn per device (the state's
+        ``rng`` folded with the device's index), the carried ``rng`` stays replicated."""
+        carried = None
+        if axis is not None:
+            carried, rng = jax.random.split(ts.rng)
+            ts = ts.replace(rng=jax.random.fold_in(rng, jax.lax.axis_index(axis)))
+        ts, traj = self.rollout(ts, mesh, axis)
         pool_metrics = {}
         if self.pool is not None:
             pool_metrics = self.pool.metrics(traj, self.env.task.reward_names, ts.pool)
             traj = self.pool.learner_samples(traj)
         flat = players_as_samples(traj) if self.separate else traj
-        ts, rewards, metrics = self.disc_step(ts, flat)
+        ts, rewards, metrics = self.disc_step(ts, flat, axis)
         metrics.update(pool_metrics)
         rewards = jnp.concatenate([rewards, flat.task_reward], -1)
         for name, r in zip(self.env.task.reward_names, jnp.moveaxis(flat.task_reward, -1, 0)):
@@ -497,12 +515,12 @@ class Learner:
             metrics[f"task/{k}"] = jnp.mean(v.astype(jnp.float32))
         if self.separate:
             T, B = traj.terminated.shape[:2]
-            ts, m = self.ppo_step_players(ts, traj, rewards.reshape((T, B, self.players) + rewards.shape[2:]))
+            ts, m = self.ppo_step_players(ts, traj, rewards.reshape((T, B, self.players) + rewards.shape[2:]), axis)
         else:
-            ts, m = self.ppo_step(ts, traj, rewards)
+            ts, m = self.ppo_step(ts, traj, rewards, axis)
         metrics.update(m)
         # Observation statistics move after the update, so the update saw the rollout's own.
-        obs_norm = self.update_obs_norm(ts.obs_norm, traj)
+        obs_norm = self.update_obs_norm(ts.obs_norm, traj, axis)
         traj = flat
         done = traj.terminated | traj.truncated
         metrics["env/terminated"] = jnp.mean(traj.terminated)
@@ -510,7 +528,24 @@ class Learner:
         metrics["env/episodes_done"] = jnp.sum(done)
         if self.pool is not None:
             ts = ts.replace(pool=self.pool.snapshot(ts.pool, ts.policy_params, obs_norm, ts.iteration + 1))
+        if axis is not None:
+            metrics = {k: (jax.lax.psum if k in SUMMED else jax.lax.pmean)(v, axis) for k, v in metrics.items()}
+            ts = ts.replace(rng=carried)
         return ts.replace(obs_norm=obs_norm, iteration=ts.iteration + 1), metrics
+
+
+SUMMED = ("env/episodes_done",)
+"""Logged metrics that are totals over the batch (the others are means)."""
+
+
+def _devices(axis: str | None) -> int:
+    """Devices along ``axis`` (1 without one)."""
+    return 1 if axis is None else jax.lax.axis_size(axis)
+
+
+def _mean(tree: Any, axis: str | None) -> Any:
+    """``tree`` averaged over the devices along ``axis`` (itself without one)."""
+    return tree if axis is None else jax.lax.pmean(tree, axis)
 
 
 def players_as_samples(traj: Transition) -> Transition:

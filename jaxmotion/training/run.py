@@ -205,8 +205,13 @@ def _check_sizes(cfg: TrainConfig, devices: int) -> None:
     """Settings the driver needs, checked before a run folder exists."""
     if cfg.iterations % cfg.chunk:
         raise ConfigError(f"iterations ({cfg.iterations}) must be a multiple of chunk ({cfg.chunk})")
-    if cfg.ppo.num_envs % devices:
-        raise ConfigError(f"num_envs ({cfg.ppo.num_envs}) must be divisible by the device count ({devices})")
+    for key, value in (
+        ("ppo.num_envs", cfg.ppo.num_envs),
+        ("ppo.minibatch_size", cfg.ppo.minibatch_size),
+        ("disc.minibatch_size", cfg.disc.minibatch_size),
+    ):
+        if value % devices:  # each device takes an equal share of the batch and of every minibatch
+            raise ConfigError(f"{key} ({value}) must be divisible by the device count ({devices})")
 
 
 def _record_config(run_dir: Path, experiment: str, cfg: TrainConfig, resolved: dict) -> None:
@@ -278,6 +283,7 @@ def train(
     backend = {
         "backend": phys.name,
         "device": jax.default_backend(),
+        "devices": mesh.size,
         **({"threads": phys.nthread} if phys.name == "mujoco" else {}),
     }
     if progress:
@@ -326,6 +332,20 @@ def _restore_resumed(run_dir: Path, ts: TrainState) -> TrainState:
     return ts
 
 
+def _last_wall(metrics_path: Path) -> float:
+    """The ``wall_s`` of a log's last row that has one (0: none)."""
+    if not metrics_path.is_file():
+        return 0.0
+    wall = 0.0
+    with open(metrics_path) as f:
+        for line in f:
+            try:
+                wall = float(json.loads(line).get("wall_s", wall))
+            except (ValueError, AttributeError):
+                continue
+    return wall
+
+
 def _run(
     experiment, cfg, learner, mesh, ts, run_dir, fresh, progress, tensorboard, stop_after_chunks, on_chunk, hooks, until
 ):
@@ -352,6 +372,9 @@ def _run(
     )
     history: list[dict] = []
     chunks = 0
+    # Wall time of the training so far, evaluations and checkpoints included (a resumed run
+    # continues its count), for the time to a result (``evaluation/time_to_result.py``).
+    wall0, started = _last_wall(metrics_path), time.perf_counter()
     try:
         while int(ts.iteration) < cfg.iterations:
             # Throughput of the compiled chunk alone (the first includes its compilation), not of
@@ -359,7 +382,8 @@ def _run(
             t0 = time.perf_counter()
             ts, m = chunk_fn(ts)
             m = jax.device_get(m)
-            sps = cfg.chunk * cfg.samples_per_iteration / (time.perf_counter() - t0)
+            t1 = time.perf_counter()
+            sps = cfg.chunk * cfg.samples_per_iteration / (t1 - t0)
             it0 = int(ts.iteration) - cfg.chunk
             warned = log_physics_warnings(run_dir, int(ts.iteration))
             rows = []
@@ -369,6 +393,7 @@ def _run(
                         "iteration": it0 + i + 1,
                         "samples": (it0 + i + 1) * cfg.samples_per_iteration,
                         "steps_per_s": sps,
+                        "wall_s": wall0 + (t0 - started) + (t1 - t0) * (i + 1) / cfg.chunk,
                         **_scalars(m, i),
                     }
                     if i == cfg.chunk - 1:  # the chunk's count, on its last row
