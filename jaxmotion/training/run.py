@@ -277,8 +277,8 @@ def train(
     ends the run there, with a checkpoint (a progressive stage whose success stopped rising).
     Raises ``TrainingDiverged`` when a
     chunk goes non-finite; a new run that fails before its first checkpoint leaves no folder.
-    Across processes every process calls this with the same arguments (``run_dir``: process
-    0's counts); only process 0 prints, and writes the logs.
+    Across processes every process calls this with the same arguments (the run folder is the
+    one process 0 names); only process 0 prints and writes the logs.
     """
     primary = hosts.primary()
     progress, tensorboard = progress and primary, tensorboard and primary
