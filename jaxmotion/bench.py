@@ -1,7 +1,9 @@
 """Throughput benchmarks: physics only, policy rollout, and the full training loop.
 
 ``python -m jaxmotion.bench [--quick] [--batches 64,256,1024] [--parts physics,rollout,train]
-[--exp composite/chest_open+squat] [--out bench.json]`` prints a table and writes JSON. ``make
+[--exp composite/chest_open+squat] [--out bench.json]`` prints a table and writes JSON;
+``--time-to-result RUN [--targets upper=0.10,lower=0.09]`` instead reads a training run's log:
+the samples and wall time it took to reach the targets (``evaluation/time_to_result.py``). ``make
 bench`` runs all three parts at batches 64, 256 and 1024 (and 4096, 16384 on a GPU).
 
 * **physics**: one jitted ``lax.scan`` over ``--steps`` control steps of ``vmap(pd_step)`` on a
@@ -57,6 +59,7 @@ from mujoco import mjx
 from jaxmotion.physics import sim
 from jaxmotion.config.checks import Count, Min, NonEmpty, NonNegative, validate
 from jaxmotion.config.errors import cli_errors
+from jaxmotion.evaluation import time_to_result
 
 ROOT_HEIGHT = 0.89
 """Standing root height (m) of the humanoid with all joint angles 0."""
@@ -557,7 +560,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rounds", type=int, help="alternating timing rounds per batch size (default 3, quick 1)")
     p.add_argument("--timeout", type=float, default=1800.0, help="abort a batch size that runs longer (s; 0: never)")
     p.add_argument("--out", default="bench.json", help="JSON output file")
+    p.add_argument("--time-to-result", metavar="RUN", help="instead: samples and wall time RUN took to --targets")
+    p.add_argument("--targets", default="upper=0.10,lower=0.09", help="group=DTW error (m), default paper Table 1")
     a = p.parse_args(argv)
+    if a.time_to_result:
+        return time_to_result.report(a.time_to_result, a.targets, a.out)
     parts = [s.strip() for s in a.parts.split(",") if s.strip()]
     if bad := [s for s in parts if s not in PARTS]:
         p.error(f"unknown part(s) {bad}; choose from {list(PARTS)}")
