@@ -6,17 +6,13 @@ and adds the hooks that evaluation provides (periodic evaluation, hard-negative 
 ``checkpoint_every=`` may change; the experiment name is the run's); ``init_from=<run-or-pretrained-folder>``
 starts a new run from another run's parameters and statistics. An experiment with
 ``progressive.primitives`` > 0 runs the progressive pipeline (``training/progressive.py``).
-
-Across machines: ``--processes N --process-id i --coordinator host:port`` (process i of N;
-``host:port`` is process 0's, reachable from all) runs one synchronous training over every
-process's devices (``training/hosts.py``); ``JAXMOTION_DISTRIBUTED=1`` instead leaves the settings
-to ``jax.distributed.initialize()``, which reads them from SLURM's ``srun`` (or Open MPI). Every
-process gets the same experiment and overrides; process 0 writes the run folder, which every
-process must see (a shared filesystem). A progressive pipeline runs in one process only.
+``JAXMOTION_DISTRIBUTED=1`` calls ``jax.distributed.initialize()`` first, for several hosts (not yet
+exercised on a real cluster).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -27,7 +23,7 @@ from jaxmotion.config.errors import cli_errors
 from jaxmotion.evaluation.imitation import PERIODIC_EVAL
 from jaxmotion.evaluation.tracking import MINING
 from jaxmotion.training import checkpoint as ckpt
-from jaxmotion.training import hosts, progressive, run
+from jaxmotion.training import progressive, run
 from jaxmotion.training.learner import TrainConfig
 
 HOOKS = (MINING, PERIODIC_EVAL)
@@ -79,25 +75,21 @@ def main(argv: list[str] | None = None) -> int:
         print(__doc__)
         print("experiments:", ", ".join(C.list_experiments()))
         return 0 if argv else 2
-    cluster, argv = hosts.split_flags(argv)
-    if not argv:
-        raise C.ConfigError("no experiment given (python -m jaxmotion.train <experiment> [key=value ...])")
-    # Before anything touches a device: the mesh then spans every process's devices.
-    hosts.initialize(cluster)
     name, overrides = argv[0], argv[1:]
+    if os.environ.get("JAXMOTION_DISTRIBUTED") == "1":
+        # Several hosts: JAX finds the cluster (SLURM, Open MPI, or JAX_COORDINATOR_ADDRESS /
+        # JAX_NUM_PROCESSES / JAX_PROCESS_ID); the mesh then spans every host's devices.
+        jax.distributed.initialize()
     if resume_target(overrides):
         name, cfg = resumed_config(name, overrides)
     else:
         cfg = C.apply_overrides(C.load_experiment(name), overrides)
     if cfg.progressive.primitives:
-        if jax.process_count() > 1:
-            raise hosts.DistributedError("a progressive pipeline runs in one process (not across processes yet)")
         root = progressive.run_pipeline(name, cfg, train)
         print(f"run folder: {root}")
         return 0
     result = train(name, cfg)
-    if hosts.primary():
-        print(f"run folder: {result.run_dir}")
+    print(f"run folder: {result.run_dir}")
     return 0
 
 

@@ -18,7 +18,6 @@ returns, averaged over samples and heads, with weight 0.5; there is no entropy t
 
 from __future__ import annotations
 
-import math
 from typing import Any
 from collections.abc import Callable
 
@@ -30,9 +29,7 @@ from flax import struct
 from jaxmotion.algos import popart
 
 Params = Any
-# A Python float, not a jnp array: importing the package must not start JAX's backend
-# (``jax.distributed.initialize`` has to come first in a multi-process run).
-_LOG_2PI = math.log(2.0 * math.pi)
+_LOG_2PI = jnp.log(2.0 * jnp.pi)
 
 
 @struct.dataclass

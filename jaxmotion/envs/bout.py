@@ -70,7 +70,7 @@ class BoutEnv:
         pc = cfg.physics
         m = sim.apply_settings(A.arena_model(ac).__copy__(), pc)
         self.mj = m
-        self.model = sim.put_model(m, pc)
+        self.model = mjx.put_model(m, impl=sim._impl(pc))
         self.channels = A.channels(ac, m)
         self.physics = (
             physics
@@ -84,7 +84,7 @@ class BoutEnv:
             init_lib if init_lib is not None else load_motionlib(cfg.init_motions, ch, drop_props=cfg.drop_props)
         )
         self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
-        self._data0 = sim.make_data(self.model)
+        self._data0 = mjx.make_data(self.model)
         self._fk = LinkFK(m)
         # Per player: its body geoms (spheres, capsules, boxes; for the start's lift above the floor).
         lay = self.layout

@@ -269,7 +269,7 @@ class HumanoidEnv:
             raise ConfigError(f"env.level_feet={','.join(unknown)}: names clips that are not loaded")
         self.hist_len = max([cfg.policy_frames] + [g.frames for g in cfg.groups])
         self._mid, self._half, self._lo, self._hi, self._bad_body = joint_arrays(ch, cfg.allowed_contacts)
-        self._data0 = sim.make_data(self.model)
+        self._data0 = mjx.make_data(self.model)
         # The character's own model: link frames, geoms and sizes; props follow it in the scene.
         m = mujoco.MjModel.from_xml_string(sim.character_xml(cfg.physics))
         self._nq, self._nv, self._nb = m.nq, m.nv, m.nbody - 1

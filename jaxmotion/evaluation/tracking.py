@@ -303,8 +303,7 @@ def mines_after(iteration: int, cfg) -> bool:
 
 
 def _mine(learner, ts, end):
-    # One process writes hard_clips.json (every process mines, on its own copy of the state).
-    ts, hard = hard_negative_update(learner, ts, end.run_dir if end.primary else None)
+    ts, hard = hard_negative_update(learner, ts, end.run_dir)
     n = learner.env.init_lib.num_clips
     end.log({"mining/success_rate": (n - len(hard)) / n, "mining/failed": float(len(hard))})
     end.say(

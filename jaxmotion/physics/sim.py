@@ -144,26 +144,10 @@ def _impl(cfg: PhysicsConfig) -> str:
     return "jax"
 
 
-def local_device() -> jax.Device:
-    """This process's first device, where MJX models and data go: MJX's default,
-    ``jax.devices()[0]``, is process 0's in a run across processes, unreachable from the others."""
-    return jax.local_devices()[0]
-
-
-def put_model(m: mujoco.MjModel, cfg: PhysicsConfig) -> mjx.Model:
-    """``mjx.put_model`` of ``m`` with ``cfg``'s implementation, on ``local_device()``."""
-    return mjx.put_model(m, impl=_impl(cfg), device=local_device())
-
-
-def make_data(model: mjx.Model) -> mjx.Data:
-    """``mjx.make_data`` of ``model`` on ``local_device()``."""
-    return mjx.make_data(model, impl=model.impl, device=local_device())
-
-
 @functools.lru_cache(maxsize=8)
 def mjx_model(cfg: PhysicsConfig) -> mjx.Model:
     """The MJX model (device arrays) for ``cfg``; cached because it is immutable."""
-    return put_model(mj_model(cfg), cfg)
+    return mjx.put_model(mj_model(cfg), impl=_impl(cfg))
 
 
 @functools.lru_cache(maxsize=8)

@@ -2,9 +2,7 @@
 ``jax.jit``, the state donated, the environment batch split over a 1-D ``data`` mesh and
 everything else replicated. Over several devices each runs the iteration on its own share under
 ``shard_map``, gradients and batch statistics averaged over the mesh (synchronous data
-parallelism, as DD-PPO). The learner's pure iteration is ``learner.Learner.iteration``. Across
-processes (``hosts``) the mesh spans every process's devices and the arrays are global: each
-process holds its devices' parts."""
+parallelism, as DD-PPO). The learner's pure iteration is ``learner.Learner.iteration``."""
 
 from __future__ import annotations
 
@@ -14,14 +12,12 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
-from jaxmotion.training import hosts
-
 if TYPE_CHECKING:
     from jaxmotion.training.learner import Learner, TrainState
 
 
 def make_mesh(devices=None) -> Mesh:
-    """A 1-D mesh over ``devices`` (default: all, of every process) with axis name ``data``."""
+    """A 1-D mesh over ``devices`` (default: all) with axis name ``data``."""
     devices = jax.devices() if devices is None else devices
     return Mesh(np.asarray(devices), ("data",))
 
@@ -35,9 +31,7 @@ def state_shardings(ts: TrainState, mesh: Mesh):
 
 
 def shard_state(ts: TrainState, mesh: Mesh) -> TrainState:
-    """``ts`` (whole on this process, as ``Learner.init`` makes it) placed on the mesh; across
-    processes every process makes the same ``ts`` and keeps its own devices' parts."""
-    return hosts.to_global(ts, state_shardings(ts, mesh))
+    return jax.device_put(ts, state_shardings(ts, mesh))
 
 
 def per_device(learner: Learner, mesh: Mesh) -> bool:
@@ -51,14 +45,13 @@ def make_train_chunk(learner: Learner, mesh: Mesh, chunk: int, example: TrainSta
     """``chunk`` iterations in one ``lax.scan`` under one ``jax.jit`` (state donated).
 
     Over several devices each runs the iteration on its own environments (``per_device``): one
-    program per device that meets the others only in the reductions. (Left to XLA's partitioner,
-    the minibatch gathers across the batch made two CPU devices 2.4x slower than one.)
+    program per device that meets the others only in the reductions, so on a CPU whose devices
+    are its cores both cores work on the networks as well as the physics. (Left to XLA's
+    partitioner, the minibatch gathers across the batch made two CPU devices 2.4x slower than one.)
 
-    Returns ``f(ts) -> (ts, metrics)`` with metrics stacked over the chunk, replicated (every
-    process can read them).
+    Returns ``f(ts) -> (ts, metrics)`` with metrics stacked over the chunk.
     """
     sh = state_shardings(example, mesh)
-    rep = NamedSharding(mesh, P())
 
     if per_device(learner, mesh):
         specs = jax.tree.map(lambda s: s.spec, sh)
@@ -67,7 +60,7 @@ def make_train_chunk(learner: Learner, mesh: Mesh, chunk: int, example: TrainSta
             return jax.lax.scan(lambda ts, _: learner.iteration(ts, axis="data"), ts, None, length=chunk)
 
         run = jax.shard_map(local, mesh=mesh, in_specs=(specs,), out_specs=(specs, P()), check_vma=False)
-        return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, rep), donate_argnums=0)
+        return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, None), donate_argnums=0)
 
     def run(ts):
         def body(ts, _):
@@ -77,4 +70,4 @@ def make_train_chunk(learner: Learner, mesh: Mesh, chunk: int, example: TrainSta
 
         return jax.lax.scan(body, ts, None, length=chunk)
 
-    return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, rep), donate_argnums=0)
+    return jax.jit(run, in_shardings=(sh,), out_shardings=(sh, None), donate_argnums=0)

@@ -10,17 +10,10 @@ After every chunk the driver checks the chunk's logged metrics and the state's p
 statistics: a run that went non-finite stops with ``TrainingDiverged`` before that chunk's
 checkpoint, so its last checkpoint is a good one. A new run that fails before its first
 checkpoint removes the folder it created.
-
-Across processes (``hosts``) every process runs this driver on its shard of the environments;
-process 0 alone writes ``config.json``, ``metrics.jsonl``, TensorBoard and the progress bar, all
-processes take part in writing and reading checkpoints (orbax: each writes its shards of the
-environment state, process 0 the replicated rest), and hooks run in every process on a
-process-local copy of the state (a state they change is taken from process 0).
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import functools
 import json
@@ -39,7 +32,6 @@ from jaxmotion.config.errors import ConfigError, JaxmotionError
 from jaxmotion.motion.data import data_dir
 from jaxmotion.physics import backends
 from jaxmotion.training import checkpoint as ckpt
-from jaxmotion.training import hosts
 from jaxmotion.training.learner import TrainConfig, TrainState
 from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
 from jaxmotion.training.runs import check_init_from, init_from, make_learner, new_run_dir, use_recorded_data
@@ -78,9 +70,6 @@ class ChunkEnd:
     """Appends a row of extra metrics for this iteration (``metrics.jsonl``, TensorBoard)."""
     say: Callable[[str], None]
     """Prints a line above the progress bar."""
-    primary: bool = True
-    """Whether this process writes the run folder (process 0 of several; ``log`` and ``say``
-    do nothing in the others)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,12 +84,10 @@ class Hook:
     before_checkpoint: bool = False
 
 
-def _log_row(path: Path | None, writer, last: dict, row: dict) -> None:
-    """Appends ``row`` to ``path`` (None: a process that does not write) and TensorBoard."""
+def _log_row(path: Path, writer, last: dict, row: dict) -> None:
     row = {"iteration": last["iteration"], "samples": last["samples"], **row}
-    if path is not None:
-        with open(path, "a") as f:
-            f.write(json.dumps(row) + "\n")
+    with open(path, "a") as f:
+        f.write(json.dumps(row) + "\n")
     if writer is not None:
         for k, v in row.items():
             if k not in ("iteration", "samples"):
@@ -244,13 +231,11 @@ PHYSICS_LOG = "physics.log"
 
 
 def log_physics_warnings(run_dir: Path, iteration: int) -> int:
-    """Appends the MuJoCo warnings this process counted since the last call to
-    ``run_dir/physics.log`` (one line per message: iteration, count, message; process i > 0 of
-    several: ``physics.<i>.log``) and returns their total (0: nothing written)."""
+    """Appends the MuJoCo warnings counted since the last call to ``run_dir/physics.log`` (one
+    line per message: iteration, count, message) and returns their total (0: nothing written)."""
     counts = backends.WARNINGS.take()
-    name = PHYSICS_LOG if hosts.primary() else f"physics.{jax.process_index()}.log"
     if counts:
-        with open(run_dir / name, "a") as f:
+        with open(run_dir / PHYSICS_LOG, "a") as f:
             for msg, n in sorted(counts.items()):
                 f.write(f"iteration {iteration}: {n} x {msg}\n")
     return sum(counts.values())
@@ -282,11 +267,7 @@ def train(
     ends the run there, with a checkpoint (a progressive stage whose success stopped rising).
     Raises ``TrainingDiverged`` when a
     chunk goes non-finite; a new run that fails before its first checkpoint leaves no folder.
-    Across processes every process calls this with the same arguments (the run folder is the
-    one process 0 names); only process 0 prints and writes the logs.
     """
-    primary = hosts.primary()
-    progress, tensorboard = progress and primary, tensorboard and primary
     if cfg.resume:
         cfg = _resumed(cfg)
         run_dir = Path(cfg.resume)
@@ -297,7 +278,7 @@ def train(
     mesh = make_mesh()
     _check_sizes(cfg, mesh.size)
     learner = make_learner(cfg)  # before the run folder exists: bad clips or settings leave nothing behind
-    run_dir = Path(hosts.broadcast_text(str(run_dir if run_dir is not None else new_run_dir(experiment))))
+    run_dir = Path(run_dir) if run_dir is not None else new_run_dir(experiment)
     phys = learner.env.physics
     backend = {
         "backend": phys.name,
@@ -313,12 +294,8 @@ def train(
         if progress:
             print(f"init_from {cfg.init_from}: starting at iteration {int(ts.iteration)}")
     fresh = not cfg.resume and not run_dir.exists()
-    hosts.barrier("run folder looked at")  # before process 0 makes it
-    if jax.process_count() > 1:
-        backend["processes"] = jax.process_count()
     try:
-        if primary:
-            _record_config(run_dir, experiment, cfg, {"physics": backend, "data": str(data_dir().absolute())})
+        _record_config(run_dir, experiment, cfg, {"physics": backend, "data": str(data_dir().absolute())})
         return _run(
             experiment,
             cfg,
@@ -335,7 +312,7 @@ def train(
             until,
         )
     except BaseException:
-        if fresh and primary:
+        if fresh:
             _remove_unfinished(run_dir)
         raise
 
@@ -349,12 +326,9 @@ def _restore_resumed(run_dir: Path, ts: TrainState) -> TrainState:
             ts, _, damaged = ckpt.restore_newest(mgr, ts, say=lines.append, doing="resuming from")
         finally:
             mgr.close()
-        if hosts.primary():
-            for line, dest in zip(lines, ckpt.set_aside(run_dir, damaged)):
-                print(f"{line} (moved to {dest})", file=sys.stderr)
-    if hosts.primary():
-        _trim_metrics(run_dir / "metrics.jsonl", int(ts.iteration))
-    hosts.barrier("resumed")  # damaged checkpoints are set aside before anyone opens the folder again
+        for line, dest in zip(lines, ckpt.set_aside(run_dir, damaged)):
+            print(f"{line} (moved to {dest})", file=sys.stderr)
+    _trim_metrics(run_dir / "metrics.jsonl", int(ts.iteration))
     return ts
 
 
@@ -380,8 +354,7 @@ def _run(
     if cfg.resume:
         ts = _restore_resumed(run_dir, ts)
     mgr = ckpt.manager(run_dir)
-    primary = hosts.primary()
-    metrics_path = run_dir / "metrics.jsonl" if primary else None
+    metrics_path = run_dir / "metrics.jsonl"
     start = int(ts.iteration)
     if start >= cfg.iterations and progress:
         print(f"{run_dir}: at iteration {start} of {cfg.iterations}, nothing to train (iterations=N continues it)")
@@ -412,9 +385,9 @@ def _run(
             t1 = time.perf_counter()
             sps = cfg.chunk * cfg.samples_per_iteration / (t1 - t0)
             it0 = int(ts.iteration) - cfg.chunk
-            warned = hosts.total(log_physics_warnings(run_dir, int(ts.iteration)))
+            warned = log_physics_warnings(run_dir, int(ts.iteration))
             rows = []
-            with open(metrics_path, "a") if primary else contextlib.nullcontext() as f:
+            with open(metrics_path, "a") as f:
                 for i in range(cfg.chunk):
                     row = {
                         "iteration": it0 + i + 1,
@@ -425,8 +398,7 @@ def _run(
                     }
                     if i == cfg.chunk - 1:  # the chunk's count, on its last row
                         row["physics/warnings"] = float(warned)
-                    if primary:
-                        f.write(json.dumps(row) + "\n")
+                    f.write(json.dumps(row) + "\n")
                     rows.append(row)
                     if writer is not None:
                         for k, v in row.items():
@@ -452,19 +424,17 @@ def _run(
                 done=done,
                 last=last,
                 log=functools.partial(_log_row, metrics_path, writer, last),
-                say=bar.write if primary else lambda line: None,
-                primary=primary,
+                say=bar.write,
             )
             for hook in hooks:
                 if hook.before_checkpoint and hook.due(cfg, end):
-                    shardings = jax.tree.map(lambda x: x.sharding, ts)
-                    ts = hosts.from_primary(hook.run(learner, hosts.to_local(ts), end), shardings)
+                    ts = hook.run(learner, ts, end)
             stop = until is not None and until(end)
             if done or stop or chunks % cfg.checkpoint_every == 0 or stop_after_chunks == chunks:
                 ckpt.save(mgr, int(ts.iteration), ts)
             for hook in hooks:
                 if not hook.before_checkpoint and hook.due(cfg, end):
-                    hook.run(learner, hosts.to_local(ts), end)
+                    hook.run(learner, ts, end)
             if on_chunk is not None:
                 on_chunk(int(ts.iteration), last)
             if stop or (stop_after_chunks is not None and chunks >= stop_after_chunks):
