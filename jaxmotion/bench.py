@@ -57,6 +57,7 @@ import numpy as np
 from mujoco import mjx
 
 from jaxmotion.physics import sim
+from jaxmotion.physics.backends import cpu_count
 from jaxmotion.config.checks import Count, Min, NonEmpty, NonNegative, validate
 from jaxmotion.config.errors import cli_errors
 from jaxmotion.evaluation import time_to_result
@@ -93,14 +94,6 @@ class BenchConfig:
 
 
 # ---- helpers ------------------------------------------------------------------------------
-def num_cpus() -> int:
-    """CPUs this process may run on (its affinity mask where the OS has one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 def device_description() -> str:
     """The first JAX device and the host's CPU model and count, in one line."""
     d = jax.devices()[0]
@@ -111,7 +104,7 @@ def device_description() -> str:
     except OSError:
         pass
     kind = f"{d.platform}:{d.device_kind}" if d.device_kind.lower() != d.platform else d.platform
-    return f"{kind} x{jax.device_count()}; host {cpu or 'cpu'}, {num_cpus()} CPUs"
+    return f"{kind} x{jax.device_count()}; host {cpu or 'cpu'}, {cpu_count()} CPUs"
 
 
 def peak_memory_mb() -> float:
@@ -218,7 +211,7 @@ def prepare_callback(cfg: BenchConfig, qpos: np.ndarray) -> tuple[Timed, dict[st
     from jaxmotion.physics import backends
 
     pc = cfg.physics
-    phys = backends.MujocoPhysics(sim.scene_xml(pc), sim.mj_model(pc), sim.mjx_model(pc), pc.substeps, num_cpus())
+    phys = backends.MujocoPhysics(sim.scene_xml(pc), sim.mj_model(pc), sim.mjx_model(pc), pc.substeps, cpu_count())
     step = jax.vmap(phys.step, in_axes=(0, None))
 
     def run(data, target):
@@ -255,7 +248,7 @@ def prepare_mujoco_c(cfg: BenchConfig, qpos: np.ndarray, stack: contextlib.ExitS
     except ImportError:
         rollout = None
     if rollout is not None and hasattr(rollout, "Rollout"):
-        nthread = num_cpus()
+        nthread = cpu_count()
         datas = [mujoco.MjData(m) for _ in range(nthread)]
         ctrl = np.zeros((1, 1, m.nu))
         out = np.empty((batch, nstep, init.shape[1]))

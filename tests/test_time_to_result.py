@@ -71,6 +71,10 @@ def test_bench_cli(tmp_path, capsys):
     assert bench.main(["--time-to-result", str(run), "--out", str(out)]) == 0
     assert "first at iteration 12 (0.00M samples, 0.4 min" in capsys.readouterr().out
     assert json.loads(out.read_text())["samples"] == 1200
+    # A run in progress: its half-written last line is skipped.
+    with open(run / "metrics.jsonl", "a") as f:
+        f.write('{"iteration": 13, "samp')
+    assert bench.main(["--time-to-result", str(run), "--out", str(out)]) == 0
     assert bench.main(["--time-to-result", str(run), "--targets", "upper=0.01", "--out", str(out)]) == 1
     # A folder without a log and malformed targets: one line, exit 2.
     for argv in (["--time-to-result", str(tmp_path / "none")], ["--time-to-result", str(run), "--targets", "up"]):

@@ -38,10 +38,19 @@ def parse_targets(text: str) -> dict[str, float]:
 
 
 def read_rows(run_dir: Path) -> list[dict]:
-    """The rows of ``run_dir/metrics.jsonl`` (FileNotFoundError without one)."""
-    path = Path(run_dir) / "metrics.jsonl"
-    with open(path) as f:
-        return [json.loads(line) for line in f if line.strip()]
+    """The rows of ``run_dir/metrics.jsonl`` in order (FileNotFoundError without one); an
+    unreadable line (the half-written last line of a run in progress) is skipped. Unlike
+    ``viz.plot.read_metrics`` an evaluation's row stays beside its iteration's training row."""
+    rows = []
+    with open(Path(run_dir) / "metrics.jsonl") as f:
+        for line in f:
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(row, dict):
+                rows.append(row)
+    return rows
 
 
 def wall_times(rows: list[dict]) -> list[float]:

@@ -260,13 +260,17 @@ def _pools(nthread: int, count: int) -> _Pools:
     return _Pools(nthread, count)
 
 
+def cpu_count() -> int:
+    """CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
 def default_threads() -> int:
     """Threads of one device's pool: the CPUs this process may use over its local devices."""
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        cpus = os.cpu_count() or 1
-    return max(1, cpus // jax.local_device_count())
+    return max(1, cpu_count() // jax.local_device_count())
 
 
 class MujocoPhysics:
