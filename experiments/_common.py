@@ -295,8 +295,9 @@ def bout(sport: str, round_s: float, iterations: int = 6000, num_envs: int = 32)
     x 2 players x horizon 8 per iteration, 256-256 networks, the paper's γ 0.99 and λ 0.95, one
     objective per reward term (critic head, PopArt, standardised advantage; ω below), penalties
     paid by the task (no ``terminate_reward``; the value after a bout's end is 0). 240 Hz physics, 30 Hz
-    control. No imitation pretraining or mixture of experts yet: the policy is the learner's
-    Gaussian MLP (a later issue), so what this learns is reach and contact, not boxing style.
+    control. The policy is the learner's Gaussian MLP, so what this learns is reach and contact,
+    not boxing style (the paper's mixture of experts with imitation pretraining:
+    `boxing/selfplay_moe`).
 
     Departures from the paper, measured on the first CPU run (2M samples, paper weights, feet-only
     contacts, lr 1e-5): bouts ended after 0.4 s on average, every one by a fall, r_close did not

@@ -79,7 +79,7 @@ def test_goal_blocks_are_found_by_name():
 
 
 def test_meta_run_must_exist(tmp_path):
-    with pytest.raises(MetaError, match="train the meta policy first"):
+    with pytest.raises(MetaError, match="meta=.*train that run first"):
         resolve_run(tmp_path)
     # The CLI says so in one line instead of a traceback.
     from jaxmotion import train as T

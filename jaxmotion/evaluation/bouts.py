@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxmotion.evaluation.rollout import program
+from jaxmotion.evaluation.rollout import act, program
 from jaxmotion.physics.arena import PLAYER_RGBA, scenery
 from jaxmotion.training.runs import load_run
 from jaxmotion.viz.plot import learning_curves
@@ -53,22 +53,23 @@ def _play_program(learner, opponent_learner, bouts: int, steps: int, determinist
         mine = jnp.arange(2)[None, :] == side[:, None]  # [E, 2]: which player is the evaluated one
 
         def step(carry, k):
-            state, obs, alive = carry
+            state, obs, alive, ca, cb = carry
             k1, k2 = jax.random.split(k)
-            a = learner.act(ts, obs, None if deterministic else k1)[0]
-            b = opponent_learner.act(ts_op, obs, None if deterministic else k2)[0]
+            a, ca = act(learner, ts, obs, None if deterministic else k1, ca)
+            b, cb = act(opponent_learner, ts_op, obs, None if deterministic else k2, cb)
             action = jnp.where(mine[..., None], a, b)
             # A bout that ends is not played on: restarting it from its start state (instead of a
             # fresh reset on every step for every bout) costs nothing.
             new, out = jax.vmap(env.step)(state, action, (state0, obs0))
-            done = jnp.any(out.terminated | out.truncated, -1)
+            ended = out.terminated | out.truncated
+            done = jnp.any(ended, -1)
+            ca, cb = learner.reset_carry(ca, ended), opponent_learner.reset_carry(cb, ended)
             rec = (state.data.qpos, alive, out.info, out.terminated, out.truncated)
-            return (new, out.obs, alive & ~done), rec
+            return (new, out.obs, alive & ~done, ca, cb), rec
 
         alive0 = jnp.ones((bouts,), bool)
-        (last, _, _), (qpos, alive, info, term, trunc) = jax.lax.scan(
-            step, (state, obs, alive0), jax.random.split(k_act, steps)
-        )
+        carry0 = (state, obs, alive0, learner.initial_carry(obs), opponent_learner.initial_carry(obs))
+        (last, *_), (qpos, alive, info, term, trunc) = jax.lax.scan(step, carry0, jax.random.split(k_act, steps))
         return qpos, alive, info, term, trunc, mine
 
     return run

@@ -243,7 +243,11 @@ def run(args, experiment: str, cfg: TrainConfig, learner: Learner, ts: TrainStat
                 f"{h['sim_max']:.2f}), reference {h['ref_mean']:.2f} ± {h['ref_std']:.2f} m "
                 f"({h['ref_min']:.2f}-{h['ref_max']:.2f})"
             )
-    if ro["meta_w"].shape[-1]:
+    if ro["meta_w"].shape[-1] and learner.meta is None:  # a gate over experts or primitives
+        w = np.abs(ro["meta_w"][ro["stepped"]])
+        res["policy_weights"] = {"mean_abs": [float(x) for x in w.mean(0)]}
+        print("  gate weights, mean |w| per expert: " + " ".join(f"{x:.2f}" for x in w.mean(0)))
+    elif ro["meta_w"].shape[-1]:
         res["meta_weights"] = meta_weight_summary(learner, ro)
         mw = res["meta_weights"]
         print(

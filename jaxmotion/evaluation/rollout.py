@@ -37,6 +37,12 @@ def acting_policy(t: jax.Array, switch_steps: int, num_policies: int) -> jax.Arr
     return (t // switch_steps) % num_policies
 
 
+def act(learner: Learner, ts, obs: jax.Array, rng: jax.Array | None, carry: jax.Array):
+    """One step of ``learner``'s policy in an evaluation: (action, the carry to the next step)."""
+    action, _, extra = learner.act(ts, obs, rng, carry)
+    return action, learner.next_carry(ts, obs, extra)
+
+
 def _rollout_fn(
     learner: Learner,
     episodes: int,
@@ -62,6 +68,7 @@ def _rollout_fn(
 
 def _rollout_program(learner: Learner, episodes: int, steps: int, deterministic: bool, switch_steps: int, actors):
     env = learner.env
+    actor = lambda i: actors[i] if actors else learner
 
     @jax.jit
     def run(ts, key):
@@ -71,18 +78,18 @@ def _rollout_program(learner: Learner, episodes: int, steps: int, deterministic:
         markers = lambda s: jax.vmap(env.task.markers)(s.goal, jax.tree.map(lambda x: x[:, -1], s.hist))
 
         def step(carry, xs):
-            state, obs, alive = carry
+            state, obs, alive, pcs = carry
             k, t = xs
             which = acting_policy(t, switch_steps, len(policies))
-            acts = [
-                (actors[i] if actors else learner).act(p, obs, None if deterministic else k)[0]
-                for i, p in enumerate(policies)
-            ]
+            acts, pcs = zip(
+                *[act(actor(i), p, obs, None if deterministic else k, c) for i, (p, c) in enumerate(zip(policies, pcs))]
+            )
             action = jnp.stack(acts)[which]
             # Incremental learning: the weights w of the meta action (paper Figs. 7-8).
             w = learner.policy_weights(policies[0], obs) if len(policies) == 1 else jnp.zeros((episodes, 0))
             state, out = jax.vmap(env.step)(state, action)
             done = out.terminated | out.truncated
+            pcs = tuple(actor(i).reset_carry(c, done) for i, c in enumerate(pcs))
             # The recorded frame t + 1 is where step t + 1 begins: its acting policy is that step's.
             acting = jnp.full((episodes,), acting_policy(t + 1, switch_steps, len(policies)), jnp.int32)
             # A terminal frame is replaced by the auto-reset state, so it is dropped (masked).
@@ -99,11 +106,12 @@ def _rollout_program(learner: Learner, episodes: int, steps: int, deterministic:
                 markers(state),
                 acting,
             )
-            return (state, out.obs, alive & ~done), rec
+            return (state, out.obs, alive & ~done, pcs), rec
 
         alive0 = jnp.ones((episodes,), bool)
+        pcs0 = tuple(actor(i).initial_carry(obs) for i in range(len(policies)))
         _, (pos, quat, qpos, alive, fell, info, stepped, task_reward, meta_w, mk, acting) = jax.lax.scan(
-            step, (state, obs, alive0), (jax.random.split(k_act, steps), jnp.arange(steps))
+            step, (state, obs, alive0, pcs0), (jax.random.split(k_act, steps), jnp.arange(steps))
         )
         first = lambda x, xs: jnp.concatenate([x[None], xs], 0)
         acting0 = jnp.full((episodes,), acting_policy(jnp.int32(0), switch_steps, len(policies)), jnp.int32)

@@ -105,6 +105,7 @@ class ComposerPolicy:
         self.primitive_dists = primitive_dists
         self.extra_size = 2 * num_primitives * action_size
         self.weight_size = num_primitives
+        self.carry_size = 0
 
     def init(self, rng: jax.Array) -> Any:
         return self.module.init(rng, jnp.zeros((1, self.obs_size), jnp.float32))
@@ -125,3 +126,6 @@ class ComposerPolicy:
 
     def weights(self, params: Any, nobs: jax.Array) -> jax.Array:
         return self.module.apply(params, nobs)[0]
+
+    def next_carry(self, params: Any, nobs: jax.Array, extra: jax.Array) -> jax.Array:
+        return jnp.zeros(nobs.shape[:-1] + (0,), nobs.dtype)

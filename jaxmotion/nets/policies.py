@@ -10,12 +10,17 @@ rollout, because the PPO ratio depends on it:
   normalised observation, from raw observations (``rng`` None: deterministic).
 * ``dist(params, nobs, extra) -> (mean, log_std)``: the Gaussian over actions.
 * ``weights(params, nobs) -> [..., weight_size]``: the composition weights an evaluator may plot
-  (incremental learning's w per DoF), ``[..., 0]`` for a plain policy.
+  (incremental learning's w per DoF, an expert gate), ``[..., 0]`` for a plain policy.
+* ``carry_size`` and ``next_carry(params, nobs, extra) -> [..., carry_size]``: a recurrent state
+  (0 features for a memoryless policy). The learner appends the carried state to ``extra`` (its
+  last ``carry_size`` features), carries ``next_carry`` to the next step and resets it to 0 where
+  an episode ends.
 
 ``GaussianPolicy`` is the MLP of every paper; ``IncrementalPolicy`` is Xu et al. 2023's Eq. 10,
 ``mu + w * stop_gradient(a_meta)`` over a frozen meta policy; ``nets.composer.ComposerPolicy``
-weights K frozen primitives (PHC's multiplicative composer). A mixture of experts with recurrent
-gating (Won et al. 2021; its gate state would ride in ``extra``) is a further class of this shape.
+weights K frozen primitives (PHC's multiplicative composer); ``nets.moe.MoEPolicy`` is Won et al.
+2021's mixture of experts, whose smoothed gate is its carry. ``make_policy`` picks a policy that
+builds on nothing frozen from ``NetConfig.policy``.
 The frozen part a policy builds on makes it (``make_policy`` of ``training.meta.Meta`` and
 ``training.primitives.Primitives``), so the learner never names a kind of policy.
 """
@@ -30,6 +35,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from jaxmotion.nets import networks as nets
+from jaxmotion.nets.moe import MoEPolicy
 
 
 @struct.dataclass
@@ -47,6 +53,7 @@ class GaussianPolicy:
 
     extra_size = 0
     weight_size = 0
+    carry_size = 0
 
     def __init__(self, obs_size: int, action_size: int, **net_kwargs: Any):
         self.net = nets.make_policy_network(obs_size, action_size, **net_kwargs)
@@ -63,6 +70,9 @@ class GaussianPolicy:
     def weights(self, params: Any, nobs: jax.Array) -> jax.Array:
         return jnp.zeros(nobs.shape[:-1] + (0,), nobs.dtype)
 
+    def next_carry(self, params: Any, nobs: jax.Array, extra: jax.Array) -> jax.Array:
+        return no_carry(nobs)
+
 
 class IncrementalPolicy:
     """``N(mu + w * stop_gradient(a_meta), sigma^2)`` (Xu et al. 2023, Eq. 10): ``a_meta`` is
@@ -78,6 +88,7 @@ class IncrementalPolicy:
         )
         self.meta_act = meta_act
         self.extra_size = self.weight_size = action_size
+        self.carry_size = 0
 
     def init(self, rng: jax.Array) -> Any:
         return self.net.init(rng)
@@ -91,3 +102,36 @@ class IncrementalPolicy:
 
     def weights(self, params: Any, nobs: jax.Array) -> jax.Array:
         return self.net.apply(params, nobs)[2]
+
+    def next_carry(self, params: Any, nobs: jax.Array, extra: jax.Array) -> jax.Array:
+        return no_carry(nobs)
+
+
+def no_carry(x: jax.Array) -> jax.Array:
+    """The (empty) recurrent state of a memoryless policy: ``[..., 0]``."""
+    return jnp.zeros(x.shape[:-1] + (0,), x.dtype)
+
+
+def make_policy(env: Any, nc: Any) -> Any:
+    """The policy ``NetConfig.policy`` names for ``env`` (``obs_size``, ``action_size``,
+    ``body_obs_size``), when it builds on no frozen part: ``mlp`` a ``GaussianPolicy``, ``moe`` a
+    ``nets.moe.MoEPolicy`` whose experts read the body features."""
+    if nc.policy == "moe":
+        return MoEPolicy(
+            env.obs_size,
+            env.action_size,
+            env.body_obs_size,
+            num_experts=nc.experts,
+            alpha=nc.gate_alpha,
+            expert_hidden=nc.expert_hidden,
+            encoder_hidden=nc.encoder_hidden,
+            init_log_std=nc.init_log_std,
+        )
+    return GaussianPolicy(
+        env.obs_size,
+        env.action_size,
+        hidden_sizes=nc.policy_hidden,
+        activation=nc.activation,
+        state_dependent_std=nc.state_dependent_std,
+        init_log_std=nc.init_log_std,
+    )

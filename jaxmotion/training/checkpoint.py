@@ -42,7 +42,7 @@ CONFIG_FILE = "config.json"
 SLIM_FILE = "slim.json"
 DAMAGED_DIR = "damaged"
 """Where a resumed run sets aside the damaged checkpoints it skipped (``set_aside``)."""
-PER_ENV = ("env_state", "obs")
+PER_ENV = ("env_state", "obs", "policy_carry")
 """The ``TrainState`` fields holding per-environment leaves, which a slim checkpoint leaves out."""
 
 

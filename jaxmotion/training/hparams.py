@@ -45,6 +45,17 @@ class NetConfig:
     """With ``TrainConfig.primitives``: how the composer combines them (``nets/composer.py``):
     'product' (the paper's multiplicative Gaussian product) or 'sum' (the authors' code: a weighted
     sum of the means, fixed sigma exp(init_log_std)). The composer's MLP is ``policy_hidden``."""
+    policy: Literal["mlp", "moe"] = "mlp"
+    """The policy, when it builds on nothing frozen (``nets.policies.make_policy``): 'mlp' the
+    Gaussian MLP of ``policy_hidden``; 'moe' Won et al. 2021's mixture of ``experts`` motor experts
+    (``expert_hidden``, reading the body state only) gated by an encoder (``encoder_hidden``, the
+    whole observation) whose weights are smoothed with ``gate_alpha`` (``nets/moe.py``)."""
+    experts: Count = 8
+    """Experts of the 'moe' policy (the paper: 8 for boxing, 4 for fencing)."""
+    gate_alpha: Annotated[float, Range(0, 1, hi_open=True)] = 0.9
+    """The 'moe' gate's smoothing: omega_hat_t = (1 - alpha) omega_t + alpha omega_hat_{t-1}."""
+    expert_hidden: Annotated[tuple[int, ...], Min(1)] = (64, 64)
+    encoder_hidden: Annotated[tuple[int, ...], Min(1)] = (128, 128)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -201,6 +212,16 @@ class TrainConfig:
     """With a pool: the share of bouts whose player 1 is a pool member (not trained on)."""
     opponent_every: Count = 100
     """With a pool: iterations between snapshots (the oldest replaced once the pool is full)."""
+    decoder_from: str = ""
+    """A run folder (or pretrained entry) of a 'moe' policy whose motor decoder (the experts and
+    sigma) and body statistics this run's 'moe' policy starts from, with a new encoder: Won et
+    al.'s transfer from imitation pretraining to a sport (``training/runs.transfer_decoder``)."""
+    decoder_start: Annotated[int, Min(0)] = 0
+    """A 'moe' policy's decoder stays frozen for its first ``decoder_start`` iterations, the encoder
+    learning alone (the paper: 300-500 after a transfer); 0: it learns from the start."""
+    decoder_every: Annotated[int, Min(0)] = 0
+    """After ``decoder_start``: turns of this many iterations, end to end, then encoder only, and
+    so on (the paper: 50); 0: end to end throughout (``nets.moe.decoder_learns``)."""
     hard_negatives_every: Annotated[int, Min(0)] = 0
     """Tracking: every this many chunks, run every clip once from t = 0 and reset to the clips it
     failed more often (``evaluation.tracking.MINING``); 0: never."""
@@ -278,6 +299,18 @@ def _player_policies(cfg: TrainConfig, scene: Scene) -> Iterator[Problem]:
         yield Problem("player_policies", "'separate' takes no primitives")
     if cfg.meta and cfg.primitives:
         yield Problem("primitives", f"a composer of primitives takes no meta policy (meta={cfg.meta})")
+
+
+def _mixture(cfg: TrainConfig, scene: Scene) -> Iterator[Problem]:
+    moe = cfg.net.policy == "moe"
+    if moe and (cfg.meta or cfg.primitives):
+        yield Problem("net.policy", "'moe' builds on nothing frozen: it takes no meta policy or primitives")
+    if moe and cfg.opponent_pool:
+        yield Problem("opponent_pool", "the pool's opponents act without a recurrent gate: use net.policy=mlp")
+    if not moe:
+        for name in ("decoder_from", "decoder_start", "decoder_every"):
+            if getattr(cfg, name):
+                yield Problem(name, "applies to a mixture of experts (net.policy=moe)")
 
 
 def _opponent_pool(cfg: TrainConfig, scene: Scene) -> Iterator[Problem]:
@@ -373,6 +406,7 @@ RULES = (
     _run_length,
     _player_policies,
     _opponent_pool,
+    _mixture,
     _minibatches,
     _objective_weights,
     _fall_value,

@@ -14,8 +14,9 @@ are standardised per objective and combined with weights ω (Σω = 1, ``tasks.c
 into one PPO surrogate. The observation's body-state part is normalised, the goal part is not.
 ``multi_objective=False`` sums the rewards into one objective with one critic head;
 ``popart=False`` trains the critic on raw returns. The policy is an object of ``nets/policies.py``
-(a Gaussian MLP, or with ``TrainConfig.meta`` the incremental policy over a frozen one); the learner
-only asks it for its distribution.
+(a Gaussian MLP, a mixture of experts, or one built on a frozen part: the incremental policy, a
+composer of primitives); the learner only asks it for its distribution and, for a recurrent one,
+carries its state through the rollout.
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv  # noqa: F401  (re-exported)
 from jaxmotion.training.hparams import DiscConfig, NetConfig, PPOConfig, Scene, TrainConfig  # noqa: F401  (re-exported)
 from jaxmotion.nets import networks as nets
-from jaxmotion.nets.policies import GaussianPolicy, PolicyState
+from jaxmotion.nets.moe import decoder_learns
+from jaxmotion.nets.policies import PolicyState, make_policy, no_carry
 from jaxmotion.training.pool import OpponentPool
 from jaxmotion.tasks import combine_weights
 
@@ -69,6 +71,8 @@ class TrainState:
     """Hard-negative mining: the reset's clip probabilities [C] (``init_lib.clip_weight`` scaled), else None."""
     pool: Any = None
     """Self-play's opponent pool (``pool.PoolState``), else None."""
+    policy_carry: Any = None
+    """A recurrent policy's state per environment ([B, (P,) C], ``Policy.carry_size``), else None."""
 
 
 AGENT_FIELDS = ("policy_params", "critic_params", "opt_state", "obs_norm", "popart")
@@ -140,18 +144,8 @@ class Learner:
         self.objective_weights = self.reward_weights if cfg.ppo.multi_objective else jnp.ones((1,), jnp.float32)
         nc = cfg.net
         self.meta = meta
-        pol = dict(
-            hidden_sizes=nc.policy_hidden,
-            activation=nc.activation,
-            state_dependent_std=nc.state_dependent_std,
-            init_log_std=nc.init_log_std,
-        )
         # A frozen part (a meta policy, primitives) makes the policy that builds on it.
-        self.policy = (
-            meta.make_policy(self.env, nc)
-            if meta is not None
-            else GaussianPolicy(self.env.obs_size, self.env.action_size, **pol)
-        )
+        self.policy = meta.make_policy(self.env, nc) if meta is not None else make_policy(self.env, nc)
         self.critic = nets.make_critic_network(
             self.env.obs_size,
             self.num_objectives,
@@ -224,6 +218,7 @@ class Learner:
             # A copy: the chunk donates the state, which must not delete the library's own array.
             clip_weights=jnp.array(self.env.init_lib.clip_weight, copy=True) if self.hard_negatives else None,
             pool=self.pool.init(agent["policy_params"], agent["obs_norm"]) if self.pool else None,
+            policy_carry=self.initial_carry(obs) if self.policy.carry_size else None,
         )
 
     # ---- acting --------------------------------------------------------------------------
@@ -239,27 +234,54 @@ class Learner:
         return self.policy.weights(ts.policy_params, self.normalize_obs(ts.obs_norm, obs))
 
     def act(
-        self, ts: TrainState | PolicyState, obs: jax.Array, rng: jax.Array | None
+        self, ts: TrainState | PolicyState, obs: jax.Array, rng: jax.Array | None, carry: jax.Array | None = None
     ) -> tuple[jax.Array, jax.Array, jax.Array]:
-        """Samples (or, with ``rng=None``, takes the mean) action [B, A], its log-prob [B] and the
-        meta action it builds on ([B, A]; [B, 0] without a meta policy). ``ts``: anything with
-        ``policy_params``, ``obs_norm`` and ``meta``. With separate player policies ``obs`` is
-        [..., P, D] and player p's policy acts on ``obs[..., p, :]``."""
+        """Samples (or, with ``rng=None``, takes the mean) action [B, A], its log-prob [B] and what
+        the policy conditioned on besides the observation (``extra``: a meta action, the carried
+        state; [B, 0] for a plain policy). ``ts``: anything with ``policy_params``, ``obs_norm``
+        and ``meta``. ``carry``: a recurrent policy's state ([B, C], from ``initial_carry``, then
+        ``next_carry`` and ``reset_carry``). With separate player policies ``obs`` is [..., P, D]
+        and player p's policy acts on ``obs[..., p, :]``."""
+        if carry is None:
+            if self.policy.carry_size:
+                raise ConfigError("this evaluation does not carry a recurrent policy's state (net.policy=moe)")
+            carry = no_carry(obs)
         if not self.separate:
-            return self._act(ts, obs, rng)
+            return self._act(ts, obs, rng, carry)
 
-        def one(policy_params, obs_norm, o, p):
+        def one(policy_params, obs_norm, o, c, p):
             sub = PolicyState(policy_params=policy_params, obs_norm=obs_norm, meta=None)
-            return self._act(sub, o, None if rng is None else jax.random.fold_in(rng, p))
+            return self._act(sub, o, None if rng is None else jax.random.fold_in(rng, p), c)
 
-        a, logp, a_meta = jax.vmap(one)(
-            ts.policy_params, ts.obs_norm, jnp.moveaxis(obs, -2, 0), jnp.arange(self.players)
+        a, logp, extra = jax.vmap(one)(
+            ts.policy_params, ts.obs_norm, *_players_first(obs, carry), jnp.arange(self.players)
         )
-        return jnp.moveaxis(a, 0, -2), jnp.moveaxis(logp, 0, -1), jnp.moveaxis(a_meta, 0, -2)
+        return jnp.moveaxis(a, 0, -2), jnp.moveaxis(logp, 0, -1), jnp.moveaxis(extra, 0, -2)
 
-    def _act(self, ts, obs, rng):
+    def initial_carry(self, obs: jax.Array) -> jax.Array:
+        """A recurrent policy's state at an episode's start for observations ``obs``: zeros."""
+        return jnp.zeros(obs.shape[:-1] + (self.policy.carry_size,), obs.dtype)
+
+    def next_carry(self, ts: TrainState | PolicyState, obs: jax.Array, extra: jax.Array) -> jax.Array:
+        """The state a recurrent policy carries to the next step, after acting on ``obs`` with
+        ``extra`` (``act``'s third output)."""
+        nxt = lambda pp, norm, o, e: self.policy.next_carry(pp, self.normalize_obs(norm, o), e)
+        if not self.separate:
+            return nxt(ts.policy_params, ts.obs_norm, obs, extra)
+        out = jax.vmap(nxt)(ts.policy_params, ts.obs_norm, *_players_first(obs, extra))
+        return jnp.moveaxis(out, 0, -2)
+
+    def reset_carry(self, carry: jax.Array, done: jax.Array) -> jax.Array:
+        """``carry`` back to its start where an episode ended (``done`` [B], or [B, P]: a bout
+        restarts for both players when either is done)."""
+        if self.players > 1:
+            done = jnp.any(done, -1, keepdims=True)
+        return jnp.where(done[..., None], jnp.zeros((), carry.dtype), carry)
+
+    def _act(self, ts, obs, rng, carry=None):
         """``act`` for one agent (the shared policy, or one player's own)."""
         extra = self.policy.extra(ts.meta, obs, None if rng is None else jax.random.fold_in(rng, 1))
+        extra = jnp.concatenate([extra, no_carry(obs) if carry is None else carry], -1)
         mean, log_std = self.policy.dist(ts.policy_params, self.normalize_obs(ts.obs_norm, obs), extra)
         if rng is None:
             return mean, jnp.zeros(mean.shape[:-1]), extra
@@ -295,18 +317,20 @@ class Learner:
         pool = jax.vmap(self.env.reset, in_axes=(0, None))(jax.random.split(k_pool, ts.obs.shape[0]), ts.clip_weights)
 
         def step(carry, key):
-            env_state, obs, opp = carry
-            action, logp, a_meta = self.act(ts, obs, key)
+            env_state, obs, opp, pc = carry
+            action, logp, extra = self.act(ts, obs, key, pc)
+            pc = self.next_carry(ts, obs, extra)
             if self.pool is not None:  # player 1 of the pool bouts: an earlier self
                 action = self.pool.act(self._act, opp, ts.meta, obs, action, jax.random.fold_in(key, 2))
             env_state, out = batch_step(env_state, action, pool)
+            pc = self.reset_carry(pc, out.terminated | out.truncated)
             if self.pool is not None:
                 opp = self.pool.redraw(opp, jnp.any(out.terminated | out.truncated, -1), jax.random.fold_in(key, 3))
             tr = Transition(
                 obs=obs,
                 action=action,
                 log_prob=logp,
-                extra=a_meta,
+                extra=extra,
                 final_obs=out.final_obs,
                 disc_obs=out.disc_obs,
                 terminated=out.terminated,
@@ -315,13 +339,15 @@ class Learner:
                 task_reward=out.task_reward,
                 info=out.info,
             )
-            return (env_state, out.obs, opp), tr
+            return (env_state, out.obs, opp, pc), tr
 
         keys = jax.random.split(key, self.cfg.ppo.horizon)
-        (env_state, obs, opp), traj = jax.lax.scan(step, (ts.env_state, ts.obs, ts.pool), keys)
+        pc0 = no_carry(ts.obs) if ts.policy_carry is None else ts.policy_carry
+        (env_state, obs, opp, pc), traj = jax.lax.scan(step, (ts.env_state, ts.obs, ts.pool, pc0), keys)
         if self.players > 1 and not self.separate:  # every player is a sample of the shared policy
             traj = players_as_samples(traj)
-        return ts.replace(env_state=env_state, obs=obs, rng=rng, pool=opp), traj
+        pc = None if ts.policy_carry is None else pc
+        return ts.replace(env_state=env_state, obs=obs, rng=rng, pool=opp, policy_carry=pc), traj
 
     # ---- discriminators --------------------------------------------------------------------
     def _update_disc(self, net, params, opt_state, norm, pol, ref, rng, axis=None):
@@ -446,12 +472,14 @@ class Learner:
 
         size = pc.minibatch_size // _devices(axis)
         nmb = n // size
+        frozen = self.frozen_mask(ts)
 
         def sgd_step(carry, mb):
             params, opt_state = carry
             (_, m), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, mb)
-            updates, opt_state = self.optimizer.update(_mean(grads, axis), opt_state, params)
-            return (optax.apply_updates(params, updates), opt_state), m
+            grads = _zero(_mean(grads, axis), frozen)
+            updates, opt_state = self.optimizer.update(grads, opt_state, params)
+            return (optax.apply_updates(params, _zero(updates, frozen)), opt_state), m
 
         def epoch(carry, key):
             perm = jax.random.permutation(key, n)[: nmb * size]  # all of it, but with a pool
@@ -466,6 +494,17 @@ class Learner:
             metrics[f"return/{k}"] = jnp.mean(returns[..., k])
         ts = ts.replace(policy_params=params["actor"], critic_params=params["critic"], opt_state=opt_state, rng=rng)
         return ts, metrics
+
+    def frozen_mask(self, ts: TrainState) -> Any:
+        """The trained parameters (``{"actor", "critic"}``) that this iteration leaves as they are,
+        as a tree of booleans: a mixture's motor decoder in its encoder-only phases
+        (``decoder_start``, ``decoder_every``; ``nets.moe.decoder_learns``); None: none."""
+        cfg = self.cfg
+        if not (cfg.decoder_start or cfg.decoder_every):
+            return None
+        frozen = ~decoder_learns(ts.iteration, cfg.decoder_start, cfg.decoder_every)
+        actor = jax.tree.map(lambda d: frozen & d, self.policy.decoder_mask(ts.policy_params))
+        return {"actor": actor, "critic": jax.tree.map(lambda _: jnp.bool_(False), ts.critic_params)}
 
     # ---- one iteration -------------------------------------------------------------------
     def ppo_step_players(self, ts: TrainState, traj: Transition, rewards: jax.Array, axis: str | None = None):
@@ -536,6 +575,18 @@ class Learner:
 
 SUMMED = ("env/episodes_done",)
 """Logged metrics that are totals over the batch (the others are means)."""
+
+
+def _zero(tree: Any, mask: Any) -> Any:
+    """``tree`` with zeros where ``mask`` (a tree of booleans, or None: nowhere) is True."""
+    if mask is None:
+        return tree
+    return jax.tree.map(lambda x, m: jnp.where(m, jnp.zeros((), x.dtype), x), tree, mask)
+
+
+def _players_first(*xs: jax.Array) -> list[jax.Array]:
+    """[..., P, D] arrays with the player axis moved first (to vmap over separate policies)."""
+    return [jnp.moveaxis(x, -2, 0) for x in xs]
 
 
 def _devices(axis: str | None) -> int:

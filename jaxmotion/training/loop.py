@@ -23,11 +23,16 @@ def make_mesh(devices=None) -> Mesh:
 
 
 def state_shardings(ts: TrainState, mesh: Mesh):
-    """Env states and observations split along the batch axis; everything else replicated."""
+    """Env states, observations and a recurrent policy's carry split along the batch axis;
+    everything else replicated."""
     batch = NamedSharding(mesh, P("data"))
     rep = NamedSharding(mesh, P())
     sh = jax.tree.map(lambda _: rep, ts)
-    return sh.replace(env_state=jax.tree.map(lambda _: batch, ts.env_state), obs=batch)
+    return sh.replace(
+        env_state=jax.tree.map(lambda _: batch, ts.env_state),
+        obs=batch,
+        policy_carry=None if ts.policy_carry is None else batch,
+    )
 
 
 def shard_state(ts: TrainState, mesh: Mesh) -> TrainState:

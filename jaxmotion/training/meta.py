@@ -34,8 +34,9 @@ class MetaError(JaxmotionError, ValueError):
     """The meta policy cannot be used: its run is missing, or it drives or sees something else."""
 
 
-def resolve_run(path: str | Path) -> Path:
-    """A run folder, or the newest run with a checkpoint in a folder of runs; a clear error otherwise."""
+def resolve_run(path: str | Path, setting: str = "meta") -> Path:
+    """A run folder, or the newest run with a checkpoint in a folder of runs; a clear error naming
+    ``setting`` otherwise."""
     p = Path(path)
     if (p / ckpt.CONFIG_FILE).exists():
         return p
@@ -44,8 +45,8 @@ def resolve_run(path: str | Path) -> Path:
     )
     if not runs:
         raise MetaError(
-            f"meta={path}: neither a run folder (no {ckpt.CONFIG_FILE}) nor a folder of runs "
-            f"with a checkpoint; train the meta policy first (e.g. make train EXP=goal/location_walk)"
+            f"{setting}={path}: neither a run folder (no {ckpt.CONFIG_FILE}) nor a folder of runs "
+            f"with a checkpoint; train that run first (e.g. make train EXP=goal/location_walk)"
         )
     return runs[-1]
 

@@ -34,7 +34,14 @@ from jaxmotion.physics import backends
 from jaxmotion.training import checkpoint as ckpt
 from jaxmotion.training.learner import TrainConfig, TrainState
 from jaxmotion.training.loop import make_mesh, make_train_chunk, shard_state
-from jaxmotion.training.runs import check_init_from, init_from, make_learner, new_run_dir, use_recorded_data
+from jaxmotion.training.runs import (
+    check_init_from,
+    init_from,
+    make_learner,
+    new_run_dir,
+    transfer_decoder,
+    use_recorded_data,
+)
 
 CHECKED_FIELDS = (
     "policy_params",
@@ -293,6 +300,10 @@ def train(
         ts = init_from(learner, ts, cfg.init_from)
         if progress:
             print(f"init_from {cfg.init_from}: starting at iteration {int(ts.iteration)}")
+    if cfg.decoder_from and not cfg.resume and not cfg.init_from:
+        ts = transfer_decoder(learner, ts, cfg.decoder_from)
+        if progress:
+            print(f"decoder_from {cfg.decoder_from}: its experts and body statistics, a new encoder")
     fresh = not cfg.resume and not run_dir.exists()
     try:
         _record_config(run_dir, experiment, cfg, {"physics": backend, "data": str(data_dir().absolute())})

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 
 from jaxmotion.config.checks import validate
 from jaxmotion.config.errors import JaxmotionError, cli_errors
@@ -22,8 +23,9 @@ from jaxmotion.envs.bout import make_env
 from jaxmotion.envs.humanoid import HumanoidEnv
 from jaxmotion.motion import data
 from jaxmotion.training import checkpoint as ckpt
+from jaxmotion.nets.moe import DECODER
 from jaxmotion.training.learner import Learner, TrainConfig, TrainState
-from jaxmotion.training.meta import Meta, resolve_run
+from jaxmotion.training.meta import Meta, MetaError, resolve_run
 from jaxmotion.training.primitives import Primitives
 
 
@@ -136,6 +138,51 @@ def init_from(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
             f"init_from={path} does not fit this experiment's networks or objectives ({str(e).splitlines()[0][:200]})"
         ) from None
     return src
+
+
+def transfer_decoder(learner: Learner, ts: TrainState, path: str | Path) -> TrainState:
+    """``ts`` with its mixture of experts' motor decoder (``nets.moe.DECODER``: the experts and
+    sigma) and its body-state statistics taken from the 'moe' run (or pretrained entry) at
+    ``path``, the encoder left new: Won et al. §4.3's transfer from imitation pretraining to a
+    sport (``decoder_from``). With separate player policies every player gets a copy."""
+    try:
+        path = check_init_from(resolve_run(path, "decoder_from"))
+    except MetaError as e:
+        raise InitFromError(str(e)) from None
+    try:
+        _, scfg, src, sts = load_run(path)
+    except ckpt.RunFolderError as e:
+        raise InitFromError(f"decoder_from={path}: {e}") from None
+    if scfg.net.policy != "moe":
+        raise InitFromError(
+            f"decoder_from={path}: its policy is net.policy={scfg.net.policy}, not a mixture of experts"
+        )
+    if src.norm_size != learner.norm_size or src.env.body_obs_size != learner.env.body_obs_size:
+        raise InitFromError(
+            f"decoder_from={path}: its body state has {src.env.body_obs_size} features (normalised: {src.norm_size}), "
+            f"this run's {learner.env.body_obs_size} ({learner.norm_size})"
+        )
+    mine = ts.policy_params["params"]
+    theirs = {k: sts.policy_params["params"][k] for k in DECODER}
+    if learner.separate:  # one copy per player
+        theirs = jax.tree.map(lambda x: jnp.broadcast_to(x, (learner.players,) + x.shape), theirs)
+    shapes = lambda t: jax.tree.map(lambda x: x.shape, t)
+    if shapes(theirs) != shapes({k: mine[k] for k in DECODER}):
+        raise InitFromError(
+            f"decoder_from={path}: its experts (net.experts={scfg.net.experts}, net.expert_hidden="
+            f"{scfg.net.expert_hidden}) do not fit this run's "
+            f"({learner.cfg.net.experts}, {learner.cfg.net.expert_hidden})"
+        )
+    norm = sts.obs_norm
+    if learner.separate:
+        norm = jax.tree.map(lambda x: jnp.broadcast_to(x, (learner.players,) + x.shape), norm)
+    put = lambda new, old: jax.device_put(jnp.asarray(new, old.dtype), old.sharding)
+    params = {"params": {**mine, **jax.tree.map(put, theirs, {k: mine[k] for k in DECODER})}}
+    return ts.replace(
+        policy_params=params,
+        opt_state=learner.optimizer.init({"actor": params, "critic": ts.critic_params}),
+        obs_norm=jax.tree.map(put, norm, ts.obs_norm),
+    )
 
 
 PER_CLIP = ("clip_fails", "clip_weights")
