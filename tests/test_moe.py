@@ -82,6 +82,24 @@ def test_the_gate_starts_near_zero_and_the_decoder_mask_names_experts_and_sigma(
         assert all(jax.tree.leaves(sub)) == (name in DECODER) and len(set(jax.tree.leaves(sub))) == 1
 
 
+def test_the_lstm_encoder_carries_its_memory_with_the_gate():
+    pol = MoEPolicy(OBS, ACT, BODY, num_experts=N, alpha=0.0, expert_hidden=(8,), encoder_hidden=(6, 8), encoder="lstm")
+    params = pol.init(jax.random.PRNGKey(0))
+    params["params"]["gate"]["kernel"] = jax.random.normal(
+        jax.random.PRNGKey(1), params["params"]["gate"]["kernel"].shape
+    )
+    assert pol.carry_size == N + 2 * 6 and pol.weight_size == 0
+    x1, x2 = _obs(10), _obs(11)
+    c0 = jnp.zeros((5, pol.carry_size))
+    c1 = pol.next_carry(params, x1, c0)
+    assert np.abs(np.asarray(c1[:, N:])).max() > 0  # the LSTM state moved
+    # The same observation acts differently after another history (alpha 0: through the memory
+    # alone), and the stored carry reproduces the acting distribution exactly.
+    assert not np.allclose(pol.dist(params, x2, c1)[0], pol.dist(params, x2, c0)[0])
+    np.testing.assert_array_equal(pol.dist(params, x2, c1)[0], pol.dist(params, x2, jnp.array(c1))[0])
+    np.testing.assert_array_equal(pol.experts(params, x2), pol.experts(params, x2.at[:, BODY:].set(0.0)))
+
+
 def test_decoder_schedule_by_hand():
     learns = [bool(decoder_learns(jnp.int32(i), 3, 2)) for i in range(10)]
     assert learns == [False, False, False, True, True, False, False, True, True, False]

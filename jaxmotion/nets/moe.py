@@ -8,10 +8,12 @@ weights ``omega_t`` in (-1, 1) (tanh, no normalisation; its last layer starts at
 every episode, and the action is ``N(sum_i omega_hat_i e_i(b), sigma^2)`` with a learned
 state-independent ``sigma``.
 
-``omega_hat_{t-1}`` is the policy's recurrent state (``carry_size = N``): the learner carries it in
-the rollout, resets it at episode ends and stores it with each step (the last ``N`` features of the
-step's ``extra``), so the PPO update recomputes exactly the distribution that acted. Gradients do
-not flow back through time (the authors' RLlib code trains the gate over stored sequences by BPTT).
+``omega_hat_{t-1}`` is the policy's recurrent state (``carry_size = N``; with the paper's LSTM
+boxing encoder, ``encoder='lstm'``, the LSTM's cell and hidden state follow it): the learner
+carries it in the rollout, resets it at episode ends and stores it with each step (the last
+``carry_size`` features of the step's ``extra``), so the PPO update recomputes exactly the
+distribution that acted. Gradients do not flow back through time (the authors' RLlib code trains
+the recurrent state over stored sequences by BPTT).
 
 The experts are the motor *decoder* that imitation pretraining trains and a sport keeps
 (``decoder_mask``; the transfer schedule of ``decoder_learns``), the encoder the part a sport
@@ -29,6 +31,7 @@ import jax.numpy as jnp
 
 from jaxmotion.nets import networks as nets
 
+ENCODERS = ("mlp", "lstm")
 DECODER = ("experts", "log_std")
 """The parameters of the motor decoder (kept by a transfer, frozen in encoder-only phases)."""
 
@@ -59,7 +62,10 @@ class Experts(nn.Module):
 
 
 class MoENet(nn.Module):
-    """``nobs [..., D] -> (omega [..., N], expert means [..., N, A], log_std [A])``."""
+    """``(nobs [..., D], memory [..., M]) -> (omega [..., N], expert means [..., N, A], log_std [A],
+    memory)``. The ``mlp`` encoder is memoryless (``M`` = 0); the ``lstm`` encoder (the paper's
+    boxing encoder, with one LSTM layer of ``encoder_hidden[0]`` units instead of two, then dense
+    layers of the rest) carries its cell and hidden state (``M`` = 2 x units)."""
 
     num_experts: int
     action_size: int
@@ -68,23 +74,34 @@ class MoENet(nn.Module):
     encoder_hidden: Sequence[int] = (128, 128)
     activation: str = "relu"
     init_log_std: float = -3.0
+    encoder: str = "mlp"
+
+    @property
+    def memory_size(self) -> int:
+        return 2 * self.encoder_hidden[0] if self.encoder == "lstm" else 0
 
     @nn.compact
-    def __call__(self, nobs: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    def __call__(self, nobs: jax.Array, memory: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
         means = Experts(self.num_experts, self.action_size, self.expert_hidden, self.activation, name="experts")(
             nobs[..., : self.body_size]
         )
-        h = nets.MLP(self.encoder_hidden, self.activation, name="encoder")(nobs)
+        if self.encoder == "lstm":
+            c, h = jnp.split(memory, 2, -1)
+            (c, h), x = nn.OptimizedLSTMCell(self.encoder_hidden[0], name="encoder_lstm")((c, h), nobs)
+            memory = jnp.concatenate([c, h], -1)
+            x = nets.MLP(self.encoder_hidden[1:], self.activation, name="encoder")(x)
+        else:
+            x = nets.MLP(self.encoder_hidden, self.activation, name="encoder")(nobs)
         gate = nn.Dense(
             self.num_experts, kernel_init=nn.initializers.variance_scaling(1e-4, "fan_in", "uniform"), name="gate"
-        )(h)
+        )(x)
         log_std = self.param("log_std", nn.initializers.constant(self.init_log_std), (self.action_size,))
-        return jnp.tanh(gate), means, log_std
+        return jnp.tanh(gate), means, log_std, memory
 
 
 class MoEPolicy:
     """The composable-policy interface (``nets/policies.py``) for ``MoENet`` with smoothing
-    ``alpha``; its carry is ``omega_hat_{t-1}`` [..., N]."""
+    ``alpha``; its carry is ``omega_hat_{t-1}`` [..., N], then the LSTM encoder's memory."""
 
     extra_size = 0
 
@@ -99,40 +116,65 @@ class MoEPolicy:
         encoder_hidden: Sequence[int] = (128, 128),
         activation: str = "relu",
         init_log_std: float = -3.0,
+        encoder: str = "mlp",
     ):
-        self.obs_size, self.alpha = obs_size, float(alpha)
+        if encoder not in ENCODERS:
+            raise ValueError(f"unknown encoder {encoder!r}; choose one of {ENCODERS}")
+        self.obs_size, self.alpha, self.n = obs_size, float(alpha), num_experts
         self.module = MoENet(
-            num_experts, action_size, body_size, tuple(expert_hidden), tuple(encoder_hidden), activation, init_log_std
+            num_experts,
+            action_size,
+            body_size,
+            tuple(expert_hidden),
+            tuple(encoder_hidden),
+            activation,
+            init_log_std,
+            encoder,
         )
-        self.carry_size = self.weight_size = num_experts
+        self.carry_size = num_experts + self.module.memory_size
+        # The gate an evaluator plots is the memoryless encoder's (a recurrent one needs its memory).
+        self.weight_size = num_experts if encoder == "mlp" else 0
 
     def init(self, rng: jax.Array) -> Any:
-        return self.module.init(rng, jnp.zeros((1, self.obs_size), jnp.float32))
+        return self.module.init(rng, *self._inputs(jnp.zeros((1, self.obs_size), jnp.float32), None))
+
+    def _inputs(self, nobs: jax.Array, extra: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+        """(nobs, the encoder's carried memory) from ``extra`` (None: a start's, zeros)."""
+        m = self.module.memory_size
+        if extra is None or m == 0:
+            return nobs, jnp.zeros(nobs.shape[:-1] + (m,), nobs.dtype)
+        return nobs, jax.lax.stop_gradient(extra[..., -m:])
+
+    def _apply(self, params: Any, nobs: jax.Array, extra: jax.Array | None):
+        return self.module.apply(params, *self._inputs(nobs, extra))
 
     def extra(self, frozen: Any, obs: jax.Array, rng: jax.Array | None) -> jax.Array:
         return jnp.zeros(obs.shape[:-1] + (0,), obs.dtype)
 
     def gate(self, omega: jax.Array, extra: jax.Array) -> jax.Array:
         """``omega_hat_t`` from this step's ``omega`` and the carried ``omega_hat_{t-1}`` (the
-        last ``N`` features of ``extra``, held constant for the gradient)."""
-        prev = jax.lax.stop_gradient(extra[..., -self.carry_size :])
+        carry's first ``N`` features in ``extra``, held constant for the gradient)."""
+        start = extra.shape[-1] - self.carry_size
+        prev = jax.lax.stop_gradient(extra[..., start : start + self.n])
         return (1.0 - self.alpha) * omega + self.alpha * prev
 
     def dist(self, params: Any, nobs: jax.Array, extra: jax.Array) -> tuple[jax.Array, jax.Array]:
-        omega, means, log_std = self.module.apply(params, nobs)
+        omega, means, log_std, _ = self._apply(params, nobs, extra)
         mean = jnp.einsum("...n,...na->...a", self.gate(omega, extra), means)
         return mean, jnp.broadcast_to(log_std, mean.shape)
 
     def next_carry(self, params: Any, nobs: jax.Array, extra: jax.Array) -> jax.Array:
-        return self.gate(self.module.apply(params, nobs)[0], extra)
+        omega, _, _, memory = self._apply(params, nobs, extra)
+        return jnp.concatenate([self.gate(omega, extra), memory], -1)
 
     def weights(self, params: Any, nobs: jax.Array) -> jax.Array:
-        """The encoder's unsmoothed ``omega_t`` (what an evaluator plots of the gate)."""
-        return self.module.apply(params, nobs)[0]
+        """The encoder's unsmoothed ``omega_t`` (what an evaluator plots of the gate; for the
+        ``lstm`` encoder, none: ``[..., 0]``)."""
+        return self._apply(params, nobs, None)[0][..., : self.weight_size]
 
     def experts(self, params: Any, nobs: jax.Array) -> jax.Array:
         """Every expert's mean action [..., N, A] (they read only the body features)."""
-        return self.module.apply(params, nobs)[1]
+        return self._apply(params, nobs, None)[1]
 
     def decoder_mask(self, params: Any) -> Any:
         """``params``' structure with True at the motor decoder's leaves (``DECODER``)."""

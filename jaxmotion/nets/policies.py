@@ -126,6 +126,7 @@ def make_policy(env: Any, nc: Any) -> Any:
             expert_hidden=nc.expert_hidden,
             encoder_hidden=nc.encoder_hidden,
             init_log_std=nc.init_log_std,
+            encoder=nc.encoder,
         )
     return GaussianPolicy(
         env.obs_size,

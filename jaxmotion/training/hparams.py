@@ -56,6 +56,10 @@ class NetConfig:
     """The 'moe' gate's smoothing: omega_hat_t = (1 - alpha) omega_t + alpha omega_hat_{t-1}."""
     expert_hidden: Annotated[tuple[int, ...], Min(1)] = (64, 64)
     encoder_hidden: Annotated[tuple[int, ...], Min(1)] = (128, 128)
+    encoder: Literal["mlp", "lstm"] = "mlp"
+    """The 'moe' gate's encoder: 'mlp' (the paper's fencing and imitation encoders) or 'lstm' (its
+    boxing encoder: an LSTM of ``encoder_hidden[0]`` units, then dense layers of the rest; the
+    LSTM state rides in the rollout with the gate's, one step of gradient, no BPTT)."""
 
 
 @dataclasses.dataclass(frozen=True)
