@@ -30,7 +30,6 @@ def _policy(alpha: float) -> tuple[MoEPolicy, dict]:
     pol = MoEPolicy(OBS, ACT, BODY, num_experts=N, alpha=alpha, expert_hidden=(8,), encoder_hidden=(8,))
     params = pol.init(jax.random.PRNGKey(0))
     # A gate far from its near-zero start, so the tests see it act.
-    params = jax.tree.map(lambda x: x, params)
     params["params"]["gate"]["kernel"] = jax.random.normal(
         jax.random.PRNGKey(1), params["params"]["gate"]["kernel"].shape
     )

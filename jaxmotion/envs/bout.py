@@ -250,3 +250,16 @@ def make_env(cfg, **kw):
     if cfg.players == PLAYERS:
         return BoutEnv(cfg, **kw)
     raise ConfigError(f"env.players={cfg.players}: must be 1 or 2")
+
+
+def env_bytes(env, horizon: int) -> int:
+    """Bytes one environment takes in a training iteration, at least: its physics state (the
+    scene's data template; else a reset's state, traced without running) and observation twice
+    (the carried ones and the rollout's fresh resets), and ``horizon`` steps of the transitions'
+    observations, actions and discriminator views (float32)."""
+    data = getattr(env, "_data0", None)
+    state = data if data is not None else jax.eval_shape(env.reset, jax.random.PRNGKey(0))
+    players = getattr(env, "players", 1)
+    obs = env.obs_size * players
+    step = 2 * obs + 3 * env.action_size * players + sum(env.disc_obs_sizes())
+    return 2 * (sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(state)) + 4 * obs) + 4 * horizon * step

@@ -37,7 +37,7 @@ from jaxmotion.algos import popart as PA
 from jaxmotion.algos import ppo as PPO
 from jaxmotion.config.checks import check_fits, report, validate
 from jaxmotion.config.errors import ConfigError
-from jaxmotion.envs.bout import make_env
+from jaxmotion.envs.bout import env_bytes, make_env
 from jaxmotion.envs.humanoid import EnvConfig, EnvState, HumanoidEnv  # noqa: F401  (re-exported)
 from jaxmotion.training.hparams import DiscConfig, NetConfig, PPOConfig, Scene, TrainConfig  # noqa: F401  (re-exported)
 from jaxmotion.nets import networks as nets
@@ -186,9 +186,8 @@ class Learner:
         )
 
     def init(self, rng: jax.Array) -> TrainState:
-        """A fresh TrainState (un-sharded; see ``loop.shard_state``), compiled once per learner:
-        dispatched op by op, its few hundred operations took 51 s on their first use on the 2-core
-        CPU (the training's start, every test's setup), compiled 14 s."""
+        """A fresh TrainState (un-sharded; see ``loop.shard_state``), compiled once per learner
+        (op by op, its few hundred operations are slower than compiling them)."""
         fn = self.__dict__.get("_init_fn")
         if fn is None:
             fn = self.__dict__["_init_fn"] = jax.jit(self._init)
@@ -236,12 +235,10 @@ class Learner:
     def act(
         self, ts: TrainState | PolicyState, obs: jax.Array, rng: jax.Array | None, carry: jax.Array | None = None
     ) -> tuple[jax.Array, jax.Array, jax.Array]:
-        """Samples (or, with ``rng=None``, takes the mean) action [B, A], its log-prob [B] and what
-        the policy conditioned on besides the observation (``extra``: a meta action, the carried
-        state; [B, 0] for a plain policy). ``ts``: anything with ``policy_params``, ``obs_norm``
-        and ``meta``. ``carry``: a recurrent policy's state ([B, C], from ``initial_carry``, then
-        ``next_carry`` and ``reset_carry``). With separate player policies ``obs`` is [..., P, D]
-        and player p's policy acts on ``obs[..., p, :]``."""
+        """Samples (``rng=None``: the mean) action [B, A], its log-prob [B] and the policy's
+        ``extra`` (a meta action, the carried state; [B, 0] for a plain policy). ``carry``: a
+        recurrent policy's state [B, C] (``initial_carry``, ``next_carry``, ``reset_carry``).
+        With separate player policies, player p's policy acts on ``obs[..., p, :]``."""
         if carry is None:
             if self.policy.carry_size:
                 raise ConfigError("this evaluation does not carry a recurrent policy's state (net.policy=moe)")
@@ -496,9 +493,8 @@ class Learner:
         return ts, metrics
 
     def frozen_mask(self, ts: TrainState) -> Any:
-        """The trained parameters (``{"actor", "critic"}``) that this iteration leaves as they are,
-        as a tree of booleans: a mixture's motor decoder in its encoder-only phases
-        (``decoder_start``, ``decoder_every``; ``nets.moe.decoder_learns``); None: none."""
+        """Booleans over ``{"actor", "critic"}``: the parameters this iteration leaves as they are (a
+        mixture's decoder in its encoder-only turns, ``nets.moe.decoder_learns``); None: none."""
         cfg = self.cfg
         if not (cfg.decoder_start or cfg.decoder_every):
             return None
@@ -602,16 +598,3 @@ def _mean(tree: Any, axis: str | None) -> Any:
 def players_as_samples(traj: Transition) -> Transition:
     """[T, B, P, ...] -> [T, B * P, ...]: every player of every environment a sample."""
     return jax.tree.map(lambda x: x.reshape((x.shape[0], x.shape[1] * x.shape[2]) + x.shape[3:]), traj)
-
-
-def env_bytes(env, horizon: int) -> int:
-    """Bytes one environment takes in a training iteration, at least: its physics state (the
-    scene's data template; else a reset's state, traced without running) and observation twice
-    (the carried ones and the rollout's fresh resets), and ``horizon`` steps of the transitions'
-    observations, actions and discriminator views (float32)."""
-    data = getattr(env, "_data0", None)
-    state = data if data is not None else jax.eval_shape(env.reset, jax.random.PRNGKey(0))
-    players = getattr(env, "players", 1)
-    obs = env.obs_size * players
-    step = 2 * obs + 3 * env.action_size * players + sum(env.disc_obs_sizes())
-    return 2 * (sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(state)) + 4 * obs) + 4 * horizon * step
